@@ -85,3 +85,30 @@ def to_codes(p: CastellaParams, y_metres):
     """Measurement codes in the core's range format (rounded, saturated)."""
     f = p.range_fmt
     return np.clip(np.round(np.asarray(y_metres) * 2.0 ** f.frac), f.min, f.max).astype(np.int64)
+
+
+def interleave(y_codes, rng, order: str = "random", restart_at=()):
+    """Merge per-track sequences (rows of ``y_codes``) into one stream of (tid, y, restart).
+
+    ``order="rr"`` is round robin; ``"random"`` picks a random track with measurements left
+    each time (so one track often comes twice in a row), keeping each track's own order.
+    Each track's first measurement is a restart, and so is every step in ``restart_at``
+    (pairs ``(track, step)``).
+    """
+    y_codes = np.asarray(y_codes)
+    n, steps = y_codes.shape
+    if order == "rr":
+        tids = np.tile(np.arange(n), steps)
+    elif order == "random":
+        tids = rng.permutation(np.repeat(np.arange(n), steps))
+    else:
+        raise ValueError(f"order must be 'rr' or 'random', not {order!r}")
+    pos = np.zeros(n, dtype=np.int64)
+    restarts = set(restart_at)
+    ys, rs = [], []
+    for t in tids:
+        k = pos[t]
+        ys.append(int(y_codes[t, k]))
+        rs.append(k == 0 or (int(t), int(k)) in restarts)
+        pos[t] += 1
+    return tids.astype(np.int64), np.array(ys, dtype=np.int64), np.array(rs, dtype=bool)

@@ -18,10 +18,11 @@ Bit-exact twin: :func:`kfgen.sim.castella.fixed_step`.
 
 from __future__ import annotations
 
-from amaranth.hdl import C, Cat, Const, Module, Mux, Signal, signed, unsigned
+from amaranth.hdl import C, Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, fifo, memory, wiring
 from amaranth.lib.wiring import In, Out
 
+from ..arith.divide import gain_divider
 from ..arith.fixed import fmt_shape, rsr, saturate
 from ..arith.pipeline import Pipeline, Staged
 from .params import ALPHA_FRAC, QSLOPE_SHIFT, RSQRT_INDEX_BITS, RSQRT_WIDTH, CastellaParams
@@ -169,8 +170,8 @@ class Castella(wiring.Component):
 
         # U1: gains, eq. (5), by a restoring divider (exact, rounded) instead of a 1/x LUT
         ssum = pl.reg("s_innov", lambda a: a + p.sr2_code, pp11)
-        k1 = self._gain(pl, "k1", pp11, ssum, 0)
-        k2 = self._gain(pl, "k2", pp12, ssum, fk2 + f11.frac - f12.frac - gw)
+        k1 = gain_divider(pl, "k1", pp11, ssum, 0, gw)
+        k2 = gain_divider(pl, "k2", pp12, ssum, fk2 + f11.frac - f12.frac - gw, gw)
 
         # U2 / U3: updates, eqs. (6) and (7)
         r = pl.reg("resid", lambda y, x: y - x, s["y"], x1p)
@@ -257,30 +258,6 @@ class Castella(wiring.Component):
         new = {k: pl.at(v, stage) for k, v in new.items()}
         out = {k: pl.at(v, stage) for k, v in out.items()}
         return stage, new, out, pl
-
-    def _gain(self, pl, name, num: Staged, den: Staged, extra: int) -> Staged:
-        """Rounded ``num * 2**(extra + gain_width) / den``, saturated: a restoring divider.
-
-        One quotient bit per stage, ``gain_width + 1`` stages, then round half up.
-        Mirrors :func:`kfgen.sim.castella.gain_divide`.
-        """
-        gw = self._p.gain_width
-        n = pl.reg(f"{name}_n", lambda x: x << max(extra, 0), num)
-        d = pl.reg(f"{name}_d", lambda x: x << max(-extra, 0), den)
-        over = pl.reg(f"{name}_over", lambda a, b: a >= b, n, d)
-        rem = n
-        bits = []
-        for i in range(gw + 1):
-            two = pl.comb(f"{name}_two{i}", lambda x: x << 1, rem)
-            diff = pl.comb(f"{name}_diff{i}", lambda a, b: a - b, two, d)
-            bit = pl.reg(f"{name}_q{i}", lambda x: ~x[-1], diff)
-            rem = pl.reg(f"{name}_r{i}", lambda x, df: Mux(df[-1], x, df), two, diff, shape=d.sig.shape())
-            bits.append(bit)
-        stage = bits[-1].stage
-        quo = pl.comb(f"{name}_quo", lambda *b: Cat(*reversed(b)), *bits)
-        top = (1 << gw) - 1
-        return pl.reg(name, lambda q, o: Mux(o, top, Mux(((q + 1) >> 1) > top, top, (q + 1) >> 1)),
-                      quo, over, shape=unsigned(gw))
 
     # ------------------------------------------------------------------ top level
     def elaborate(self, platform):
