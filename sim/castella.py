@@ -49,7 +49,9 @@ def gain_divide(num, den, extra_shift: int, gain_width: int):
     """Rounded quotient ``num * 2**(extra_shift + gain_width) / den`` saturated to ``gain_width`` bits.
 
     Mirrors the restoring divider: ``gain_width + 1`` quotient bits, then round half up.
-    Returns ``(gain, overflowed)``; ``overflowed`` when the quotient did not fit.
+    Returns ``(gain, overflowed)``; ``overflowed`` when ``num >= den`` after alignment (the
+    quotient needs more than ``gain_width`` bits); a quotient that only rounds up to
+    ``2**gain_width`` is clamped without the flag.
     """
     num = np.asarray(num, dtype=np.int64) << max(extra_shift, 0)
     den = np.asarray(den, dtype=np.int64) << max(-extra_shift, 0)
@@ -109,7 +111,7 @@ def fixed_step(p: CastellaParams, st: FixedState, y, restart):
     # U1, gains (eq. 5): exact rounded division instead of the paper's 8-bit reciprocal LUT
     s = pp11 + p.sr2_code
     k1, _ = gain_divide(pp11, s, 0, gw)
-    # K2 may clip at its format's top (0.5/T at the first update): harmless, not flagged
+    # K2 may clip at its format's top (about 0.5/T, reached at a track's first update): harmless, not flagged
     k2, _ = gain_divide(pp12, s, fk2 + f11.frac - f12.frac - gw, gw)
 
     # U2, state update (eq. 6) and U3, covariance update (eq. 7)

@@ -1,6 +1,5 @@
 """Unit tests of the Amaranth building blocks in Amaranth's own simulator, against the model."""
 
-import itertools
 
 import numpy as np
 import pytest

@@ -26,7 +26,7 @@ P12 is unsigned: with P22 >= 0 every term of the recursion that feeds it is non-
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 __all__ = ["CastellaParams", "ParamError", "Fmt"]
 
@@ -176,7 +176,7 @@ class CastellaParams:
         # The covariance formats must resolve sigma_r^2.
         sr_code = self.sigma_r ** 2 * 2.0 ** self.p11_fmt.frac
         if sr_code < 16:
-            raise ParamError("sigma-r", f"{self.sigma_r!r} m is too small for data_width {self.data_width}: "
+            raise ParamError("sigma_r", f"{self.sigma_r!r} m is too small for data_width {self.data_width}: "
                              "sigma_r^2 needs at least 4 significant bits in P11")
 
     # ------------------------------------------------------------------ formats
