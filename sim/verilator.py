@@ -52,7 +52,9 @@ def build(rtl_dir: Path, top: str, build_dir: Path, waves: bool = False):
         sources=[VerilatorControlFile(rtl_dir / f"{top}.vlt"), Verilog(rtl_dir / f"{top}.v")],
         hdl_toplevel=top,
         build_dir=build_dir,
-        build_args=["--trace-fst", "--trace-structs"] if waves else [],
+        # One C++ file: the wheel's verilated.mk has an empty precompiled-header include
+        # flag, which breaks the split (parallel) build of larger designs.
+        build_args=["--output-split", "0"] + (["--trace-fst", "--trace-structs"] if waves else []),
         waves=waves,
         timescale=("1ns", "1ps"),
         log_file=Path(build_dir) / "build.log",

@@ -6,7 +6,7 @@ checks each against the model in Amaranth's simulator.
 
 from __future__ import annotations
 
-from amaranth.hdl import Mux, Shape, signed, unsigned
+from amaranth.hdl import C, Mux, Shape, Value, signed, unsigned
 
 __all__ = ["rsr", "saturate", "fmt_shape"]
 
@@ -25,6 +25,11 @@ def rsr(v, s: int):
 
 def saturate(v, fmt):
     """``(value, overflowed)``: ``v`` clamped into ``fmt``'s range, and whether it had to be."""
-    hi = v > fmt.max
-    lo = v < fmt.min
+    v = Value.cast(v)
+    shape = v.shape()
+    lo_v = -(1 << (shape.width - 1)) if shape.signed else 0
+    hi_v = (1 << (shape.width - 1)) - 1 if shape.signed else (1 << shape.width) - 1
+    # Compare only where the operand's range reaches past the format's (no constant compares).
+    hi = v > fmt.max if hi_v > fmt.max else C(0, 1)
+    lo = v < fmt.min if lo_v < fmt.min else C(0, 1)
     return Mux(hi, fmt.max, Mux(lo, fmt.min, v)), hi | lo
