@@ -35,7 +35,8 @@ bench: $(STAMP)
 	$(PY) -m kfgen.gen.bench
 
 plots: $(STAMP)
-	$(PY) -m kfgen.sim.plots
+	$(PY) -m kfgen.sim.mc_verilator build/mc
+	$(PY) -m kfgen.sim.plots -o sim/figures --verilator build/mc/verilator_mc.npz
 
 clean:
 	rm -rf $(OUT) build .pytest_cache

@@ -123,7 +123,8 @@ class Castella(wiring.Component):
                         "restart": Staged(Signal(name="restart"), 1)}
             for name, field in lay:
                 state_in[name] = Staged(Signal(field.shape, name=name), 1)
-        s = state_in
+        # Register the state words once more: LUT RAM read and bypass make a slow path.
+        s = {k: pl.reg(f"{k}_s2", lambda x: x, v) for k, v in state_in.items()}
         fr, fv = p.range_fmt, p.vel_fmt
         f11, f12, f22 = p.p11_fmt, p.p12_fmt, p.p22_fmt
         gw, fk2, fz = p.gain_width, p.k2_fmt.frac, p.z_fmt
@@ -141,7 +142,8 @@ class Castella(wiring.Component):
             m.submodules[name] = mem
             port = mem.read_port()  # read latency: 1 cycle
             m.d.comb += port.addr.eq(pl.at(index, index.stage))
-            return Staged(port.data, index.stage + 1)
+            # and a register after it: a block RAM's clock-to-out is slow on ECP5
+            return pl.reg(name + "_q", lambda x: x, Staged(port.data, index.stage + 1))
 
         phase = pl.comb("phase", lambda r, ph: Mux(r, PHASE_FIRST, ph), s["restart"], s["phase"])
 
@@ -211,7 +213,8 @@ class Castella(wiring.Component):
         manoeuvre = pl.reg("manoeuvre", lambda x: x > p.z1_code, zabs)
         # U5: q variation, the straight line of Figure 2
         dz = pl.reg("dz", lambda x: x - p.z1_code, zabs)
-        m_dq = pl.reg("m_dq", lambda d: Mux(d > 0, d, 0)[:fz.width] * p.q_slope, dz)
+        dpos = pl.reg("dpos", lambda d: Mux(d > 0, d, 0)[:fz.width], dz)
+        m_dq = pl.reg("m_dq", lambda d: d * p.q_slope, dpos)
         h_dq = pl.reg("h_dq", lambda x: rsr(x, QSLOPE_SHIFT), m_dq)
         qn = pl.reg("qn", lambda d, h: Mux(d <= 0, 0, Mux(h > p.q_max, p.q_max, h)),
                     dz, h_dq, shape=unsigned(p.q_width))
