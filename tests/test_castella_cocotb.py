@@ -1,6 +1,7 @@
 """The generated Castella Verilog in Verilator under cocotb, word for word against the model."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -61,7 +62,9 @@ def scenario_codes(params, runs, seed, which=("scenario1", "scenario2")):
 
 def run_checked(out, params, manifest, tids, ys, rs, **kw):
     expected, cols = expected_words(params, manifest, tids, ys, rs)
-    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=out / "sim_build", **kw)
+    waves = bool(os.environ.get("KFGEN_WAVES"))  # KFGEN_WAVES=1 make test: dump.fst per run
+    build = out / ("sim_build_fst" if waves else "sim_build")
+    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=build, waves=waves, **kw)
     # The testbench compared every word as it arrived; check the count and order here too.
     assert len(res["tid"]) == len(tids)
     assert np.array_equal(res["tid"], tids)
