@@ -72,7 +72,7 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     ``expected`` (``tdata``, ``tid``, ``tuser`` word arrays) makes the testbench compare
     every result as it arrives; a difference fails the run (``AssertionError``).
     Returns the output words (``tdata``, ``tid``, ``tuser``), the decoded fields, and
-    ``in_cycle``/``out_cycle`` of every handshake. ``waves`` writes ``dump.fst``.
+    ``in_cycle``/``out_cycle`` of every handshake. ``waves`` writes ``build_dir/<name>.fst``.
     """
     from cocotb_tools.check_results import get_results
 
@@ -107,6 +107,8 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
         waves=waves,
         log_file=build_dir / f"{name}.log",
     )
+    if waves and (build_dir / "dump.fst").exists():
+        (build_dir / "dump.fst").replace(build_dir / f"{name}.fst")
     total, failed = get_results(Path(results))
     if failed or total == 0:
         log = (build_dir / f"{name}.log").read_text(errors="replace")
