@@ -4,6 +4,8 @@ Operands are delayed to a common stage before an operation, so a datapath writte
 sequence of operations is register-balanced by construction (as-soon-as-possible
 scheduling). The pipeline never stalls: a ``valid`` bit travels beside the data and the
 consumer decides what to do with it, which keeps clock-enable fan-out off the datapath.
+Registers made here have no reset; a delayed signal keeps the reset of its source, so
+a ``valid`` bit with a reset delays through registers with a reset.
 """
 
 from __future__ import annotations
@@ -53,7 +55,9 @@ class Pipeline:
     def reg(self, name: str, fn, *vals: Staged, shape=None, stage: int | None = None) -> Staged:
         """Register ``fn(*vals)``: the result is one stage after the latest operand."""
         expr, s = self._apply(fn, vals, stage)
-        out = Signal(shape if shape is not None else expr.shape(), name=name)
+        # Data registers have no reset (only valid bits need one): delay chains can then
+        # become shift-register LUTs, and the reset net stays small.
+        out = Signal(shape if shape is not None else expr.shape(), name=name, reset_less=True)
         self._m.d.sync += out.eq(expr)
         return Staged(out, s + 1)
 

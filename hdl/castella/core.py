@@ -286,9 +286,9 @@ class Castella(wiring.Component):
 
         # Stage 0 (handshake) to stage 1 (state read data)
         v1 = Signal()
-        tid1 = Signal(p.tid_width)
-        y1 = Signal(fmt_shape(p.range_fmt))
-        restart1 = Signal()
+        tid1 = Signal(p.tid_width, reset_less=True)
+        y1 = Signal(fmt_shape(p.range_fmt), reset_less=True)
+        restart1 = Signal(reset_less=True)
         accept = Signal()
         stage1 = {"y": Staged(y1, 1), "restart": Staged(restart1, 1)}
         for name, field in lay:
