@@ -24,6 +24,9 @@ def gain_divider(pl: Pipeline, name: str, num: Staged, den: Staged, extra: int, 
     bits = []
     for i in range(width + 1):
         two = pl.comb(f"{name}_two{i}", lambda x: x << 1, rem)
+        if i == width:  # the last remainder is not needed, only its quotient bit
+            bits.append(pl.reg(f"{name}_q{i}", lambda a, b: a >= b, two, d))
+            break
         diff = pl.comb(f"{name}_diff{i}", lambda a, b: a - b, two, d)
         bits.append(pl.reg(f"{name}_q{i}", lambda x: ~x[-1], diff))
         rem = pl.reg(f"{name}_r{i}", lambda x, df: Mux(df[-1], x, df), two, diff, shape=d.sig.shape())

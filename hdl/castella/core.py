@@ -130,10 +130,11 @@ class Castella(wiring.Component):
         gw, fk2, fz = p.gain_width, p.k2_fmt.frac, p.z_fmt
         (tm, tf), (t2m, t2f), (tsm, tsf), (im, inf_) = p.t_const, p.t2x_const, p.tsq_const, p.inv_t_const
 
-        def sat_reg(name, v, fmt):
+        def sat_reg(name, v, fmt, flagged=True):
             val = pl.reg(name, lambda x: saturate(x, fmt)[0], v, shape=fmt_shape(fmt))
-            flg = pl.reg(name + "_sat", lambda x: saturate(x, fmt)[1], v)
-            return val, flg
+            if not flagged:
+                return val
+            return val, pl.reg(name + "_sat", lambda x: saturate(x, fmt)[1], v)
 
         def rom(name, table, index: Staged, width):
             if dummy:
@@ -202,13 +203,13 @@ class Castella(wiring.Component):
         rsq = rom("rsqrt_lut", p.rsqrt_table, idx, RSQRT_WIDTH)
         m_zn = pl.reg("m_zn", lambda x, g: x * g, r, rsq)
         h_zn = pl.reg("h_zn", lambda x: rsr(x, fr.frac + p.rsqrt_frac - fz.frac), m_zn)
-        zn, _ = sat_reg("zn", h_zn, fz)
+        zn = sat_reg("zn", h_zn, fz, flagged=False)  # z saturating is harmless: not flagged
         a = p.alpha_code
         za_ = pl.reg("zf_a", lambda x: x * a, zn)
         zb_ = pl.reg("zf_b", lambda x: x * ((1 << ALPHA_FRAC) - a), s["zf"])
         zsum = pl.reg("zf_sum", lambda u, v: u + v, za_, zb_)
         zfh = pl.reg("zf_h", lambda x: rsr(x, ALPHA_FRAC), zsum)
-        zf, _ = sat_reg("zf", zfh, fz)
+        zf = sat_reg("zf", zfh, fz, flagged=False)
         zabs = pl.reg("zabs", lambda x: abs(x), zf)
         manoeuvre = pl.reg("manoeuvre", lambda x: x > p.z1_code, zabs)
         # U5: q variation, the straight line of Figure 2
