@@ -282,8 +282,7 @@ class Castella(wiring.Component):
         out_bits = p.port_width("m_axis_tdata") + p.tid_width + p.port_width("m_axis_tuser")
         m.submodules.ofifo = ofifo = fifo.SyncFIFOBuffered(width=out_bits, depth=self.fifo_depth)
         credits = Signal(range(self.fifo_depth + 1))
-        room = Signal()
-        m.d.comb += room.eq(credits < self.fifo_depth)
+        room = Signal(init=1)  # registered ``credits < fifo_depth``
 
         # Stage 0 (handshake) to stage 1 (state read data)
         v1 = Signal()
@@ -335,6 +334,11 @@ class Castella(wiring.Component):
             Cat(self.m_axis_tdata, self.m_axis_tid, self.m_axis_tuser).eq(ofifo.r_data),
             ofifo.r_en.eq(self.m_axis_tready),
         ]
+        # Both next values are ready before ``accept`` settles: it only drives a mux.
         popped = self.m_axis_tvalid & self.m_axis_tready
-        m.d.sync += credits.eq(credits + accept - popped)
+        keep, inc = credits - popped, credits + 1 - popped
+        m.d.sync += [
+            credits.eq(Mux(accept, inc, keep)),
+            room.eq(Mux(accept, inc < self.fifo_depth, keep < self.fifo_depth)),
+        ]
         return m
