@@ -334,11 +334,13 @@ class Castella(wiring.Component):
             Cat(self.m_axis_tdata, self.m_axis_tid, self.m_axis_tuser).eq(ofifo.r_data),
             ofifo.r_en.eq(self.m_axis_tready),
         ]
-        # Both next values are ready before ``accept`` settles: it only drives a mux.
+        # Every candidate next value comes from registers alone; the handshakes (late
+        # signals from the ports) only select among them.
         popped = self.m_axis_tvalid & self.m_axis_tready
-        keep, inc = credits - popped, credits + 1 - popped
+        up, down = accept & ~popped, ~accept & popped
+        depth = self.fifo_depth
         m.d.sync += [
-            credits.eq(Mux(accept, inc, keep)),
-            room.eq(Mux(accept, inc < self.fifo_depth, keep < self.fifo_depth)),
+            credits.eq(Mux(up, credits + 1, Mux(down, credits - 1, credits))),
+            room.eq(Mux(up, credits < depth - 1, Mux(down, 1, credits < depth))),
         ]
         return m
