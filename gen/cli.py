@@ -192,10 +192,10 @@ def _build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(
             core.name, help=core.summary, description=f"{core.name}: {core.summary}.", allow_abbrev=False,
             formatter_class=argparse.RawDescriptionHelpFormatter,
-            epilog=f"Values come from the defaults, then --config FILE.toml (keys are the option names "
-                   f"without the dashes,\nwith - or _: tracks = 8, sigma-r = 50.0), then the command "
-                   f"line. Writes DIR/TOP.v,\nDIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the "
-                   f"manifest); TOP is --name.")
+            epilog="Values come from the defaults, then --config FILE.toml (its keys are the option names\n"
+                   "without the leading dashes; - and _ are interchangeable), then the command line.\n"
+                   "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest);\n"
+                   "TOP is --name.")
         g = p.add_argument_group("parameters")
         for field in defaults:
             g.add_argument(option(field), metavar="TOP" if field == "name" else field.upper(),
@@ -236,7 +236,7 @@ def _read_config(path: str, fields: Mapping) -> dict:
 
 def _convert(field: str, text: str, default, doc: Doc):
     """A command-line string as the type of the field's default."""
-    if isinstance(default, bool) or isinstance(default, str):
+    if isinstance(default, str):
         return text
     try:
         if isinstance(default, int):

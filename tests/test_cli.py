@@ -1,0 +1,242 @@
+"""The ``kfgen`` command line: every error path, help, config files, determinism, the manifest."""
+
+import dataclasses
+import json
+import re
+
+import pytest
+
+from kfgen.gen import __version__
+from kfgen.gen.cli import CORES, option
+from kfgen.hdl.castella.core import Castella
+from kfgen.hdl.castella.params import RANGES, CastellaParams
+
+from conftest import kfgen
+
+FIELD_PORTS = ("s_axis_tdata", "s_axis_tuser", "m_axis_tdata", "m_axis_tuser")
+
+
+def _lo_hi(key):
+    lo, hi = RANGES[key]
+    if isinstance(lo, int):
+        return [lo - 1, hi + 1]
+    return [lo / 2, hi * 2]
+
+
+def _toml(tmp_path, text, name="cfg.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# (id, arguments after `kfgen` with OUT for the output directory, text the error line must name)
+ERRORS = [
+    ("tracks-0", ["castella", "--tracks", "0"], "--tracks"),
+    *[(f"{key}-{v}", ["castella", option(key), v], option(key)) for key in RANGES for v in _lo_hi(key)],
+    ("tracks-float", ["castella", "--tracks", "2.5"], "--tracks"),
+    ("tracks-word", ["castella", "--tracks", "abc"], "--tracks"),
+    ("period-word", ["castella", "--period", "fast"], "--period"),
+    ("period-nan", ["castella", "--period", "nan"], "--period"),
+    ("alpha-empty", ["castella", "--alpha", ""], "--alpha"),
+    ("alpha-0", ["castella", "--alpha", "0"], "--alpha"),
+    ("alpha-1", ["castella", "--alpha", "1"], "--alpha"),
+    ("alpha-1.5", ["castella", "--alpha", "1.5"], "--alpha"),
+    ("alpha-inf", ["castella", "--alpha", "inf"], "--alpha"),
+    ("z1-above-z2", ["castella", "--z1", "2", "--z2", "1.5"], "--z1"),
+    ("z1-equals-z2", ["castella", "--z1", "1.5", "--z2", "1.5"], "--z1"),
+    ("q1-above-q2", ["castella", "--q1", "300"], "--q1"),
+    ("name-digit", ["castella", "--name", "9lives"], "--name"),
+    ("name-dash", ["castella", "--name", "my-core"], "--name"),
+    ("unknown-option", ["castella", "--trakcs", "8"], "--trakcs"),
+    ("unknown-option-eq", ["castella", "--colour=red"], "--colour"),
+    ("abbreviation", ["castella", "--track", "8"], "--track"),
+    ("stray-argument", ["castella", "eight"], "eight"),
+    ("missing-value", ["castella", "--tracks"], "--tracks"),
+    ("unknown-core", ["fpu"], "CORE"),
+    ("no-core", [], "CORE"),
+    ("no-output", ["castella", "--tracks", "2"], "-o"),
+]
+
+
+@pytest.mark.parametrize("case, args, param", ERRORS, ids=[e[0] for e in ERRORS])
+def test_bad_input(tmp_path, case, args, param):
+    out = tmp_path / "out"
+    with_output = args[:1] == ["castella"] and case != "no-output"
+    _check_error(kfgen(*args, *(["-o", out] if with_output else []), check=False), param)
+    assert not out.exists(), "a rejected command must write nothing"
+
+
+def _check_error(proc, param):
+    lines = proc.stderr.splitlines()
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"kfgen: error: {param}: "), lines[0]
+    assert len(lines[0]) > len(f"kfgen: error: {param}: ") + 5, "the line must say what is allowed"
+    assert proc.stdout == ""
+
+
+CONFIG_ERRORS = [
+    ("missing", None, "--config"),
+    ("directory", "DIR", "--config"),
+    ("not-toml", "tracks = \n", "--config"),
+    ("not-utf8", b"\xff\xfe tracks = 1", "--config"),
+    ("duplicate-toml", "tracks = 8\ntracks = 9\n", "--config"),
+    ("unknown-key", "tracks = 8\ncolour = 'red'\n", "colour"),
+    ("table", "[castella]\ntracks = 8\n", "castella"),
+    ("both-spellings", "sigma_r = 50.0\nsigma-r = 60.0\n", "sigma-r"),
+    ("string-for-int", "tracks = \"8\"\n", "--tracks"),
+    ("float-for-int", "tracks = 8.0\n", "--tracks"),
+    ("bad-alpha", "alpha = 2.0\n", "--alpha"),
+    ("z-order", "z1 = 3.0\nz2 = 2.0\n", "--z1"),
+]
+
+
+@pytest.mark.parametrize("content, param", [e[1:] for e in CONFIG_ERRORS], ids=[e[0] for e in CONFIG_ERRORS])
+def test_bad_config(tmp_path, content, param):
+    cfg = tmp_path / "cfg.toml"
+    if content == "DIR":
+        cfg.mkdir()
+    elif isinstance(content, bytes):
+        cfg.write_bytes(content)
+    elif content is not None:
+        cfg.write_text(content)
+    out = tmp_path / "out"
+    proc = kfgen("castella", "--config", cfg, "-o", out, check=False)
+    _check_error(proc, param)
+    if param.startswith("--") and param != "--config":
+        assert "cfg.toml" in proc.stderr, "a bad value from a file names the file"
+    assert not out.exists()
+
+
+def test_unwritable_output(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    _check_error(kfgen("castella", "-o", blocker, check=False), "-o")
+    _check_error(kfgen("castella", "-o", blocker / "sub", check=False), "-o")
+    assert blocker.read_text() == "not a directory"
+
+
+def test_version():
+    proc = kfgen("--version")
+    assert proc.stdout.strip() == f"kfgen {__version__}"
+    assert proc.stderr == ""
+
+
+def test_help_lists_every_parameter():
+    top = kfgen("--help")
+    for name, core in CORES.items():
+        assert name in top.stdout
+        text = " ".join(kfgen(name, "--help").stdout.split())  # undo line wrapping
+        for f in dataclasses.fields(core.params):
+            assert option(f.name) in text, f.name
+            assert f"default {f.default}" in text, f.name
+            doc = core.docs()[f.name]
+            assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text
+        for key, (lo, hi) in RANGES.items():
+            assert str(lo) in text and str(hi) in text, key
+        assert "--config" in text and "-o DIR" in text
+
+
+# ---------------------------------------------------------------------------- generated files
+
+@pytest.fixture(scope="module")
+def default_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("default")
+    proc = kfgen("castella", "-o", out)
+    return out, proc
+
+
+def test_prints_paths_written(default_out):
+    out, proc = default_out
+    assert proc.stdout.splitlines() == [str(out / f"castella.{ext}") for ext in ("v", "vlt", "json")]
+    assert proc.stderr == ""
+
+
+def test_config_file_and_override(tmp_path):
+    cfg = _toml(tmp_path, "tracks = 8\nsigma-r = 50.0\ndata_width = 20\nname = \"fromfile\"\n")
+    out = tmp_path / "out"
+    kfgen("castella", "--config", cfg, "--tracks", "4", "--name", "cli", "-o", out)
+    manifest = json.loads((out / "cli.json").read_text())
+    expect = CastellaParams(tracks=4, sigma_r=50.0, data_width=20, name="cli")
+    assert manifest["parameters"] == expect.to_dict()
+    assert not (out / "fromfile.json").exists()
+
+
+def test_deterministic(tmp_path, default_out):
+    first, _ = default_out
+    second = tmp_path / "elsewhere" / "deeper"
+    kfgen("castella", "-o", second)
+    for ext in ("v", "vlt", "json"):
+        a, b = (first / f"castella.{ext}").read_bytes(), (second / f"castella.{ext}").read_bytes()
+        assert a == b, f"castella.{ext} differs between two runs"
+        text = a.decode()
+        for leak in (str(first), str(tmp_path), str(tmp_path.parent.parent), "/home/", "/tmp/", "/root/",
+                     "/usr/", "site-packages"):
+            assert leak not in text, f"castella.{ext} contains {leak!r}"
+        assert not re.search(r"\b20\d\d-\d\d-\d\d\b|\b\d\d:\d\d:\d\d\b", text), f"castella.{ext} has a timestamp"
+        assert "(* src" not in text
+
+
+def test_header(default_out):
+    out, _ = default_out
+    text = (out / "castella.v").read_text()
+    head = text[:text.index("module ")]
+    assert f"kfgen {__version__}" in head
+    for key, value in CastellaParams().to_dict().items():
+        assert re.search(rf"//\s+{key}\s+= {re.escape(repr(value))}\n", head), key
+
+
+def _modules(text):
+    return re.findall(r"^\s*module\s+(\S+?)\s*[(;#]", text, re.M)
+
+
+def test_modules_prefixed_by_top(tmp_path, default_out):
+    out, _ = default_out
+    kfgen("castella", "--tracks", "8", "--name", "castella8", "-o", tmp_path)
+    one = _modules((out / "castella.v").read_text())
+    eight = _modules((tmp_path / "castella8.v").read_text())
+    assert one and all(m.startswith("castella") for m in one)
+    assert eight and all(m.startswith("castella8") for m in eight)
+    assert not set(one) & set(eight), "two configurations must be able to share one project"
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"tracks": 8, "name": "castella8"},
+                                    {"tracks": 3, "data_width": 20, "gain_width": 10, "q_width": 5,
+                                     "period": 0.5, "sigma_r": 50.0, "name": "castella_w20"}],
+                         ids=["default", "tracks8", "w20"])
+def test_manifest(tmp_path, kwargs):
+    params = CastellaParams(**kwargs)
+    args = []
+    for k, v in kwargs.items():
+        args += [option(k), v]
+    kfgen("castella", *args, "-o", tmp_path)
+    top = params.name
+    manifest = json.loads((tmp_path / f"{top}.json").read_text())
+    core = Castella(params)
+    core._MustUse__silence = True  # built for its attributes only, never elaborated
+    assert manifest["core"] == "castella"
+    assert manifest["top"] == top
+    assert manifest["generator"] == {"name": "kfgen", "version": __version__}
+    assert manifest["parameters"] == params.to_dict()
+    assert manifest["latency_cycles"] == core.latency
+    assert manifest["initiation_interval"] == core.initiation_interval
+    assert manifest["track_interval_cycles"] == core.track_interval
+    ports = {p["name"]: p for p in manifest["ports"]}
+    for name in FIELD_PORTS:
+        assert ports[name]["fields"] == params.field_list(name)
+        assert ports[name]["width"] == params.port_width(name)
+    for name in ("s_axis_tid", "m_axis_tid"):
+        assert ports[name]["width"] == params.tid_width
+    for p in manifest["ports"]:
+        assert set(p) == ({"name", "direction", "width", "fields"} if p["name"] in FIELD_PORTS
+                          else {"name", "direction", "width"}), p["name"]
+        for f in p.get("fields", []):
+            assert set(f) == {"name", "lsb", "width", "signed", "frac_bits", "unit"}
+    # The manifest's ports are the Verilog module's, in its order, with its widths.
+    verilog = (tmp_path / f"{top}.v").read_text()
+    header = re.search(rf"^module {top}\((.*?)\);", verilog, re.M | re.S).group(1)
+    assert [p.strip() for p in header.split(",")] == [p["name"] for p in manifest["ports"]]
+    for p in manifest["ports"]:
+        rng = f"[{p['width'] - 1}:0] " if p["width"] > 1 else ""
+        assert re.search(rf"^\s*{p['direction']} {re.escape(rng)}{p['name']};", verilog, re.M), p["name"]
