@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from kfgen.hdl.castella.params import ALPHA_FRAC, RANGES, Z_FRAC, Z_WIDTH, CastellaParams
+from kfgen.hdl.castella.params import ALPHA_FRAC, Q2_MAX, RANGES, Z_FRAC, Z_MAX, CastellaParams
 
 from . import __version__
 
@@ -84,7 +84,6 @@ def _castella_docs() -> dict[str, Doc]:
         lo, hi = RANGES[key]
         return f"integer {lo}..{hi}" if isinstance(lo, int) else f"{lo} to {hi}"
 
-    z_max = (1 << (Z_WIDTH - 1 - Z_FRAC)) - 1  # the integer bits of the z format
     return {
         "tracks": Doc("independent tracks held in state memory, selected by s_axis_tid", "", rng("tracks")),
         "data_width": Doc("width of the range, velocity and covariance words", "bits", rng("data_width")),
@@ -98,11 +97,11 @@ def _castella_docs() -> dict[str, Doc]:
         "q1": Doc("manoeuvre noise spectral density while the filtered residual is below z1", "m^2/s^3",
                   "0 < q1 < q2"),
         "q2": Doc("manoeuvre noise spectral density once the filtered residual reaches z2", "m^2/s^3",
-                  "greater than q1"),
+                  f"greater than q1, at most {Q2_MAX:g}"),
         "z1": Doc("filtered normalised residual above which q rises from q1 (manoeuvre flagged)", "sigma",
                   "0 < z1 < z2"),
         "z2": Doc("filtered normalised residual at which q reaches q2", "sigma",
-                  f"z1 < z2 <= {z_max}, at least 2**-{Z_FRAC} above z1"),
+                  f"z1 < z2 <= {Z_MAX}, at least 2**-{Z_FRAC} above z1"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier: a letter or _, then letters, digits or _"),
     }

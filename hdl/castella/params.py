@@ -41,6 +41,9 @@ RSQRT_WIDTH = 16
 CONST_BITS = 17
 #: Fraction bits of the q-line slope multiplier.
 QSLOPE_SHIFT = 16
+#: Largest q2 (m^2/s^3) and z2 (sigma, the integer range of the z format) accepted.
+Q2_MAX = 1e6
+Z_MAX = (1 << (Z_WIDTH - 1 - Z_FRAC)) - 1
 
 
 class ParamError(ValueError):
@@ -164,11 +167,10 @@ class CastellaParams:
                              f"{ALPHA_FRAC} fraction bits, not {self.alpha!r}")
         if not 0 < self.q1 < self.q2:
             raise ParamError("q1", f"must satisfy 0 < q1 < q2, got q1={self.q1!r} q2={self.q2!r}")
-        if self.q2 > 1e6:
-            raise ParamError("q2", f"must be at most 1e6 m^2/s^3, not {self.q2!r}")
-        zmax = (1 << (Z_WIDTH - 1 - Z_FRAC)) - 1
-        if not 0 < self.z1 < self.z2 <= zmax:
-            raise ParamError("z1", f"must satisfy 0 < z1 < z2 <= {zmax}, got z1={self.z1!r} z2={self.z2!r}")
+        if self.q2 > Q2_MAX:
+            raise ParamError("q2", f"must be at most {Q2_MAX:g} m^2/s^3, not {self.q2!r}")
+        if not 0 < self.z1 < self.z2 <= Z_MAX:
+            raise ParamError("z1", f"must satisfy 0 < z1 < z2 <= {Z_MAX}, got z1={self.z1!r} z2={self.z2!r}")
         if self.z2_code - self.z1_code < 1:
             raise ParamError("z2", f"must exceed z1 by at least {2 ** -Z_FRAC}")
         if not isinstance(self.name, str) or not self.name.isidentifier() or not self.name.isascii():
