@@ -19,6 +19,7 @@ CONFIGS = {
     "castella32": dict(tracks=32),
     "castella_w20": dict(tracks=3, data_width=20, gain_width=10, q_width=5, period=0.5, sigma_r=50.0),
     "castella64": dict(tracks=64),
+    "castella100": dict(tracks=100),
 }
 
 _CLI = {"tracks": "--tracks", "data_width": "--data-width", "gain_width": "--gain-width",
@@ -128,6 +129,16 @@ def test_one_measurement_per_clock(core):
     res, _ = run_checked(out, p, man, tids, ys, rs, name="rate")
     assert np.all(np.diff(res["in_cycle"]) == 1)
     assert np.all(np.diff(res["out_cycle"]) == 1)
+
+
+def test_many_tracks_random_order(core):
+    """Beyond the busy bitmap (more than 64 entries) the hazard check compares track indices."""
+    out, p, man = core("castella100")
+    rng = np.random.default_rng(41)
+    codes = scenario_codes(p, 3, seed=41)[:, :40]
+    tids, ys, rs = scenarios.interleave(codes, rng, "random", restart_at=[(0, 20)])
+    tids = np.where(tids == 5, 99, tids)  # the highest track index too
+    run_checked(out, p, man, tids, ys, rs, gap=0.2, stall=0.2, seed=8, name="many")
 
 
 def test_non_default_widths(core):

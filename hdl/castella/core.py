@@ -30,6 +30,8 @@ from .params import ALPHA_FRAC, QSLOPE_SHIFT, RSQRT_INDEX_BITS, RSQRT_WIDTH, Cas
 __all__ = ["Castella", "state_layout"]
 
 PHASE_FIRST, PHASE_INIT, PHASE_TRACK = 0, 1, 2
+#: Up to this many state-memory entries, in-flight tracks are kept as a bitmap.
+BUSY_BITMAP_MAX = 64
 
 
 def state_layout(p: CastellaParams) -> data.StructLayout:
@@ -298,10 +300,23 @@ class Castella(wiring.Component):
         write_stage, new, out, pl = self._datapath(m, stage1)
         valid = Staged(v1, 1)
         tid = Staged(tid1, 1)
-        tids = [(pl.at(valid, k), pl.at(tid, k)) for k in range(1, write_stage)]
-
+        # Hazard: the measurement's track is still in flight (accepted, not yet written back).
         hazard = Signal()
-        m.d.comb += hazard.eq(Cat(*(vk & (tk == self.s_axis_tid) for vk, tk in tids)).any())
+        wv, wtid = pl.at(valid, write_stage), pl.at(tid, write_stage)
+        if depth <= BUSY_BITMAP_MAX:
+            # a busy bit per track: one multiplexer on the ready path
+            busy = Signal(depth)
+            for t in range(depth):
+                with m.If(accept & (self.s_axis_tid == t)):
+                    m.d.sync += busy[t].eq(1)
+                with m.Elif(wv & (wtid == t)):
+                    m.d.sync += busy[t].eq(0)
+            # the write-back of this very cycle is seen through the transparent read port
+            m.d.comb += hazard.eq(busy.bit_select(self.s_axis_tid, 1) & ~(wv & (wtid == self.s_axis_tid)))
+        else:
+            # many tracks: compare with the track of every stage still before write-back
+            tids = [(pl.at(valid, k), pl.at(tid, k)) for k in range(1, write_stage)]
+            m.d.comb += hazard.eq(Cat(*(vk & (tk == self.s_axis_tid) for vk, tk in tids)).any())
         m.d.comb += [
             self.s_axis_tready.eq(~sweeping & room & ~hazard),
             accept.eq(self.s_axis_tvalid & self.s_axis_tready),
@@ -314,21 +329,20 @@ class Castella(wiring.Component):
             restart1.eq(self.s_axis_tuser),
         ]
 
-        wv = pl.at(valid, write_stage)
         with m.If(sweeping):
             m.d.comb += [wr.addr.eq(sweep_addr), wr.en.eq(1), wr.data.eq(0)]
             m.d.sync += sweep_addr.eq(sweep_addr + 1)
             with m.If(sweep_addr == depth - 1):
                 m.d.sync += sweeping.eq(0)
         with m.Else():
-            m.d.comb += [wr.addr.eq(pl.at(tid, write_stage)), wr.en.eq(wv)]
+            m.d.comb += [wr.addr.eq(wtid), wr.en.eq(wv)]
             m.d.comb += [getattr(wr.data, k).eq(v) for k, v in new.items()]
 
         # Results into the FIFO; the credit counter guarantees it has room.
         tdata = Cat(new["x1"], new["x2"], out["k1"], out["k2"], out["q"])
         tuser = Cat(out["phase"], out["manoeuvre"], out["saturated"])
         m.d.comb += [
-            ofifo.w_data.eq(Cat(tdata, pl.at(tid, write_stage), tuser)),
+            ofifo.w_data.eq(Cat(tdata, wtid, tuser)),
             ofifo.w_en.eq(wv),
             self.m_axis_tvalid.eq(ofifo.r_rdy),
             Cat(self.m_axis_tdata, self.m_axis_tid, self.m_axis_tuser).eq(ofifo.r_data),
