@@ -63,7 +63,7 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3)) -> dic
 
     Fmax moves by several percent with the placement seed, so we route with each of
     ``seeds`` and report the median (used for throughput) and the best, with the median
-    seed's critical path. router2: router1 spends many minutes on this design's congestion.
+    seed's critical path (nextpnr's default router1).
     """
     _run([*yosys_cmd(), "-q", "-p", f"read_verilog {top}.v; synth_ecp5 -top {top} -json {top}_ecp5.json"],
          work, "ecp5_synth.log")
@@ -72,9 +72,9 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3)) -> dic
         rep = f"ecp5_report_s{seed}.json"
         try:
             _run([*nextpnr_ecp5_cmd(), "--85k", "--package", "CABGA381", "--freq", str(freq), "--seed", str(seed),
-                  "--timing-allow-fail", "--router", "router2", "--json", f"{top}_ecp5.json", "--report", rep],
+                  "--timing-allow-fail", "--json", f"{top}_ecp5.json", "--report", rep],
                  work, f"ecp5_pnr_s{seed}.log")
-        except RuntimeError:  # router2 occasionally fails a seed (e.g. the clock arc): note it, go on
+        except RuntimeError:  # a seed that does not route: note it, go on
             failed.append(seed)
             continue
         report = json.loads((work / rep).read_text())
@@ -268,9 +268,9 @@ def main(argv=None) -> int:
         *(f"ECP5 critical path, {r['tracks']} track(s): {r['critical_path']}." for r in rows if "critical_path" in r),
         *(f"ECP5 Fmax by seed, {r['tracks']} track(s): "
           + ", ".join(f"{k}: {v:.1f} MHz" for k, v in sorted(r["fmax_by_seed"].items()))
-          + (f"; router2 failed seed(s) {', '.join(map(str, r['failed_seeds']))}" if r["failed_seeds"] else "")
+          + (f"; nextpnr failed seed(s) {', '.join(map(str, r['failed_seeds']))}" if r["failed_seeds"] else "")
           + "." for r in rows if "fmax_by_seed" in r),
-        f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g} --router router2, seeds "
+        f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seeds "
         f"{' '.join(map(str, args.seeds))} (median reported). "
         "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites).",
         f"Work files in {out}/ ({time.monotonic() - start:.0f} s).",
