@@ -126,6 +126,44 @@ register(Core(
 ))
 
 
+# ---------------------------------------------------------------------------- IEEE-754 units
+
+def _fpu_docs() -> dict[str, Doc]:
+    from kfgen.hdl.arith.float.params import MAX_CYCLES_PER_OP, OPS
+    return {
+        "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
+                  "float to int32 (round to nearest even, saturating)", "", "one of " + ", ".join(OPS)),
+        "format": Doc("floating-point format", "",
+                      "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
+                      "and M stored fraction bits (2..64), e.g. e6m11"),
+        "subnormals": Doc("ieee: gradual underflow; ftz: subnormal inputs and results flushed to zero "
+                          "(smaller, as vendor IP)", "", "ieee or ftz"),
+        "stages": Doc("pipeline register stages = latency", "cycles",
+                      "a count the unit can place (its error names the range); the unit's default "
+                      "meets 100 MHz on ECP5 for binary32"),
+        "cycles_per_op": Doc("div and sqrt: cycles per operation; 1 fully pipelined, K > 1 iterative "
+                             "and smaller, with i_ready backpressure", "cycles",
+                             f"integer 1..{MAX_CYCLES_PER_OP}; 1 for other ops"),
+        "name": Doc("top-level module and file name", "",
+                    "a Verilog identifier: a letter or _, then letters, digits or _"),
+    }
+
+
+def _fpu_params_cls():
+    from kfgen.hdl.arith.float.params import FpuParams
+    return FpuParams
+
+
+register(Core(
+    name="fpu",
+    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i) in any format",
+    params=_fpu_params_cls(),
+    docs=_fpu_docs,
+    build=lambda p: p.build(),
+    fields_of=lambda p, port: p.field_list(port),
+))
+
+
 # ---------------------------------------------------------------------------- argument parsing
 
 class _Parser(argparse.ArgumentParser):
@@ -175,7 +213,8 @@ def _defaults(params_cls) -> dict:
 
 def _help(doc: Doc, default) -> str:
     unit = f" [{doc.unit}]" if doc.unit else ""
-    return f"{doc.meaning}{unit}; {doc.allowed}; default {default}".replace("%", "%%")
+    shown = "the unit's own" if default is None else default
+    return f"{doc.meaning}{unit}; {doc.allowed}; default {shown}".replace("%", "%%")
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -238,11 +277,11 @@ def _convert(field: str, text: str, default, doc: Doc):
     if isinstance(default, str):
         return text
     try:
-        if isinstance(default, int):
+        if default is None or isinstance(default, int):  # None: an optional count
             return int(text, 10)
         return float(text)
     except ValueError:
-        kind = "an integer" if isinstance(default, int) else "a number"
+        kind = "an integer" if default is None or isinstance(default, int) else "a number"
         raise UsageError(option(field), f"must be {kind}, not {text!r} (allowed: {doc.allowed})") from None
 
 

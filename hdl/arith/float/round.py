@@ -1,0 +1,378 @@
+"""The pieces every floating-point unit shares: operand unpacking, the rounding and packing
+stage, the pipeline-register placement, and constructor checks.
+
+A unit is a straight-line datapath: unpack the operands (:func:`unpack`), compute an exact or
+sticky-truncated raw result, and hand it to :func:`round_pack`, which normalises, denormalises,
+rounds to nearest even, packs and raises the flags. Pipeline registers go at named
+*boundaries* of that datapath (:class:`Cuts`); a unit lists which boundaries get a register for
+each stage count, so the latency is exactly the number of registers on the path.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from amaranth.hdl import C, Cat, Module, Mux, Shape, Signal, Value, signed, unsigned
+from amaranth.lib import data, wiring
+
+from .format import FloatFormat
+
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "FloatUnit", "Cuts", "unpack",
+           "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
+
+SUBNORMAL_MODES = ("ieee", "ftz")
+
+#: Boundaries inside :func:`round_pack`, in datapath order: before the normalising shifter,
+#: before the rounding increment, before the final select of special results.
+ROUND_BOUNDARIES = ("round.shift", "round.round", "round.select")
+
+
+def check_unit_params(fmt, subnormals, stages, plans, default):
+    """Validate the common constructor arguments of a unit; returns ``(fmt, stages)``.
+
+    ``fmt`` may be a :class:`FloatFormat` or its name; ``plans`` maps each allowed stage count
+    to the boundaries that get a register; ``stages=None`` means ``default``.
+    """
+    if isinstance(fmt, str):
+        fmt = FloatFormat.parse(fmt)
+    if not isinstance(fmt, FloatFormat):
+        raise ValueError(f"fmt must be a FloatFormat or a format name, not {fmt!r}")
+    if subnormals not in SUBNORMAL_MODES:
+        raise ValueError(f"subnormals must be one of {', '.join(map(repr, SUBNORMAL_MODES))}, "
+                         f"not {subnormals!r}")
+    if stages is None:
+        stages = default
+    if isinstance(stages, bool) or not isinstance(stages, int) or stages not in plans:
+        raise ValueError(f"stages must be an integer from {min(plans)} to {max(plans)}, "
+                         f"not {stages!r}")
+    return fmt, stages
+
+
+class FloatUnit(wiring.Component):
+    """Common frame of the pipelined units: parameters, properties and the output stage.
+
+    A subclass sets ``PLANS`` (stage count -> boundaries that get a register, in datapath
+    order, ending with ``"out"`` for the output register) and ``DEFAULT_STAGES``, and writes
+    ``datapath(m, cuts) -> (word, flags)``; :meth:`elaborate` registers the result at ``"out"``
+    and drives ``o_y``, ``o_flags`` and ``o_valid``.
+    """
+
+    PLANS: dict[int, tuple[str, ...]] = {}
+    DEFAULT_STAGES = 0
+
+    def __init__(self, fmt, subnormals, stages, ports):
+        """``ports(fmt)`` gives the signature members for the checked format."""
+        try:
+            self._fmt, self._stages = check_unit_params(fmt, subnormals, stages, self.PLANS,
+                                                        self.DEFAULT_STAGES)
+        except ValueError:
+            self._MustUse__silence = True  # a rejected unit is not an unused one
+            raise
+        self._subnormals = subnormals
+        super().__init__(ports(self._fmt))
+
+    @property
+    def fmt(self) -> FloatFormat:
+        return self._fmt
+
+    @property
+    def subnormals(self) -> str:
+        return self._subnormals
+
+    @property
+    def stages(self) -> int:
+        return self._stages
+
+    @property
+    def latency(self) -> int:
+        """Cycles from ``i_valid`` to ``o_valid``: the register stages."""
+        return self._stages
+
+    @property
+    def initiation_interval(self) -> int:
+        return 1
+
+    def datapath(self, m: Module, cuts: Cuts):
+        raise NotImplementedError
+
+    def elaborate(self, platform):
+        m = Module()
+        cuts = Cuts(m, self.PLANS[self._stages], self.i_valid)
+        word, flags = self.datapath(m, cuts)
+        v = cuts("out", y=word, flags=flags)
+        cuts.check()
+        m.d.comb += [self.o_y.eq(v.y), self.o_flags.eq(v.flags), self.o_valid.eq(cuts.valid)]
+        return m
+
+
+class Cuts:
+    """Pipeline registers at the chosen boundaries of a straight-line datapath.
+
+    The datapath passes every live value through each boundary by name
+    (``v = cuts("align", sign=s, exp=e)``); at a chosen boundary they are registered, elsewhere
+    they pass through as wires. Data registers have no reset; the ``valid`` bit beside them has
+    one, so the pipeline comes out of reset empty.
+
+    Parameters
+    ----------
+    m : Module
+        Where the registers go (``sync`` domain).
+    chosen : iterable of str
+        The boundaries that get a register.
+    valid : Value
+        The input valid bit; :attr:`valid` is its copy at the current boundary.
+    """
+
+    def __init__(self, m: Module, chosen, valid):
+        self._m = m
+        self._chosen = frozenset(chosen)
+        self._seen: list[str] = []
+        self.valid = valid
+
+    def __call__(self, name: str, **values) -> SimpleNamespace:
+        if name in self._seen:
+            raise ValueError(f"boundary {name!r} passed twice")
+        self._seen.append(name)
+        tag = name.replace(".", "_")
+        if name not in self._chosen:
+            return SimpleNamespace(**{k: self.wire(f"{tag}_{k}", v) for k, v in values.items()})
+        out = {}
+        for key, v in values.items():
+            shape = v.shape() if isinstance(v, data.View) else Value.cast(v).shape()
+            if Shape.cast(shape).width == 0:  # nothing to register (and no zero-width wire)
+                out[key] = v
+                continue
+            reg = Signal(shape, name=f"{tag}_{key}", reset_less=True)  # a view stays a view
+            self._m.d.sync += reg.eq(v)
+            out[key] = reg
+        valid = Signal(name=f"{tag}_valid")
+        self._m.d.sync += valid.eq(self.valid)
+        self.valid = valid
+        return SimpleNamespace(**out)
+
+    def wire(self, name: str, value) -> Signal:
+        """``value`` as a named combinational signal.
+
+        Every value used more than once should be one: Amaranth expressions are trees, so a
+        shared subexpression is otherwise copied into each use (exponentially, in a deep
+        datapath such as a leading-zero counter) by the simulator.
+        """
+        shape = value.shape() if isinstance(value, data.View) else Value.cast(value).shape()
+        if Shape.cast(shape).width == 0:
+            return value
+        sig = Signal(shape, name=name)
+        self._m.d.comb += sig.eq(value)
+        return sig
+
+    def check(self):
+        """Raise if a chosen boundary was never passed (a misspelt plan)."""
+        missing = self._chosen.difference(self._seen)
+        if missing:
+            raise ValueError(f"boundaries {sorted(missing)} are not in the datapath")
+
+
+def unpack(fmt: FloatFormat, word, subnormals: str = "ieee") -> SimpleNamespace:
+    """Decode an operand word.
+
+    Returns a namespace of values: ``sign``; ``exp``, the unbiased exponent (signed, ``emin``
+    for zeros and subnormals); ``sig``, the significand with its hidden bit (``fmt.precision``
+    bits, value ``sig * 2**(exp - frac_bits)``); and the class bits ``is_zero``, ``is_sub``,
+    ``is_normal``, ``is_inf``, ``is_nan`` (either kind), ``is_qnan``, ``is_snan``. With ``subnormals="ftz"`` a subnormal reads as a zero of
+    its sign (``is_zero`` set, ``sig`` zero, ``is_sub`` clear).
+    """
+    word = Value.cast(word)
+    m, e = fmt.frac_bits, fmt.exp_bits
+    sign = word[m + e]
+    field = word[m:m + e]
+    frac = word[:m]
+    field_zero = field == 0
+    field_ones = field == fmt.exp_max_field
+    frac_zero = frac == 0
+    ftz = subnormals == "ftz"
+    is_sub = C(0, 1) if ftz else field_zero & ~frac_zero
+    is_zero = field_zero if ftz else field_zero & frac_zero
+    is_nan = field_ones & ~frac_zero
+    exp = Mux(field_zero, fmt.emin, Cat(field, C(0, 1)).as_signed() - fmt.bias)
+    sig = Mux(field_zero, 0, Cat(frac, C(1, 1))) if ftz else Cat(frac, ~field_zero)
+    return SimpleNamespace(
+        sign=sign, exp=exp, sig=sig, is_zero=is_zero, is_sub=is_sub,
+        is_normal=~field_zero & ~field_ones, is_inf=field_ones & frac_zero, is_nan=is_nan,
+        is_qnan=is_nan & frac[m - 1], is_snan=is_nan & ~frac[m - 1])
+
+
+def leading_zeros(cuts: Cuts, x, name: str = "lz") -> Value:
+    """Count of leading zero bits of ``x`` (``len(x)`` when ``x`` is zero), a log-depth tree.
+
+    ``cuts`` gives the combinational signals the tree nodes are made of.
+    """
+    x = Value.cast(x)
+    width = len(x)
+    n = 2
+    while n < width + 1:
+        n *= 2
+    # A one below ``x`` caps the count at ``width`` and keeps every subtree's answer defined.
+    padded = cuts.wire(f"{name}_in", Cat(C(0, n - width - 1), C(1, 1), x))
+
+    def tree(v, path):
+        if len(v) == 2:
+            return ~v[1], cuts.wire(f"{name}_any{path}", v[0] | v[1])
+        half = len(v) // 2
+        (count_hi, any_hi), (count_lo, any_lo) = tree(v[half:], path + "h"), tree(v[:half], path + "l")
+        count = cuts.wire(f"{name}_count{path}", Cat(Mux(any_hi, count_hi, count_lo), ~any_hi))
+        return count, cuts.wire(f"{name}_any{path}", any_hi | any_lo)
+
+    return tree(padded, "")[0]
+
+
+def _signed(v) -> Value:
+    """``v`` as a signed value of the same magnitude (one bit wider if it was unsigned)."""
+    v = Value.cast(v)
+    return v if v.shape().signed else Cat(v, C(0, 1)).as_signed()
+
+
+def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
+                     denormalise: bool = True) -> data.View:
+    """The exponent side of :func:`round_pack`, to compute before the significand is ready.
+
+    Pass the result through the datapath's boundaries and give it to :func:`round_pack` as
+    ``exp`` (with a ``width``-bit ``sig`` and the same ``denormalise``): the adds and compares
+    on the exponent then leave the path through the leading-zero count. Fields: ``biased``,
+    the exponent plus ``bias - 1``; ``below``, the exponent is below ``emin``; ``right``, the
+    denormalising right shift (capped where every bit is sticky); ``room``, the left shift
+    that puts the top bit at ``emin`` (0 to ``width``).
+    """
+    exp = _signed(exp)
+    right_max = fmt.precision + 1 if denormalise else 0
+    layout = data.StructLayout({
+        "biased": signed(max(len(exp), fmt.exp_bits + 2) + 1),
+        "below": unsigned(1),
+        "right": unsigned(right_max.bit_length()),
+        "room": unsigned(width.bit_length()),
+    })
+    room = cuts.wire("room", exp - fmt.emin)      # left shift that puts the MSB at emin
+    prep = Signal(layout, name="exponent")
+    cuts._m.d.comb += [
+        prep.biased.eq(exp + (fmt.bias - 1)),
+        prep.below.eq(room < 0),
+        prep.room.eq(Mux(room < 0, 0, Mux(room > width, width, room))),
+    ]
+    if denormalise:
+        # Past p + 1 places the round bit is zero and every bit is sticky.
+        cuts._m.d.comb += prep.right.eq(Mux(room < -right_max, right_max, Mux(room < 0, -room, 0)))
+    return prep
+
+
+def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_sign=None,
+               is_nan=0, is_inf=0, is_zero=0, invalid=0, divbyzero=0,
+               subnormals: str = "ieee", denormalise: bool = True):
+    """Round a raw result to ``fmt`` (nearest, ties to even) and pack it with its flags.
+
+    Parameters
+    ----------
+    cuts : Cuts
+        Places registers at :data:`ROUND_BOUNDARIES` if chosen.
+    fmt : FloatFormat
+    sign : Value, 1 bit
+        Sign of a nonzero result (and of ``is_inf``/``is_zero`` specials).
+    exp : Value, signed, or the view from :func:`prepare_exponent`
+        Exponent of the most significant bit of ``sig``: the raw value is
+        ``(sig + f) * 2**(exp - len(sig) + 1)`` with ``0 < f < 1`` if ``sticky`` else ``f = 0``.
+        Any width: the unit sizes it for its whole exponent range.
+    sig : Value, unsigned, ``W >= fmt.precision + 2`` bits
+        Significand, normalised or not: leading zeros are counted and shifted out here, never
+        below ``emin``; below ``emin`` it is shifted right. The ``W - precision`` bits under
+        the rounding point of a normalised ``sig`` are the guard bits. A zero ``sig`` (with
+        ``sticky`` clear) is an exact zero.
+    sticky : Value, 1 bit
+        Some nonzero bits below ``sig`` were dropped. When ``sticky`` is set (or ``sig``'s lowest
+        bit stands for dropped bits), ``sig`` must have fewer leading zeros than ``W - precision
+        - 1`` so the dropped bits stay below the round bit and the bit under it.
+    zero_sign : Value, 1 bit, optional
+        Sign of an exact zero result (``sig == 0``): for sums, ``+0`` unless both addends are
+        negative. Defaults to ``sign``.
+    is_nan, is_inf, is_zero : Value, 1 bit
+        Special results that bypass the datapath: canonical NaN, infinity or zero of ``sign``
+        (in that priority).
+    invalid, divbyzero : Value, 1 bit
+        Raise NV / DZ (only meaningful with a special result).
+    subnormals : "ieee" or "ftz"
+        ``"ftz"`` flushes a result that is tiny after rounding to a zero of its sign, with UF|NX.
+    denormalise : bool
+        ``False`` when the unit guarantees ``exp >= emin``, so no right shift is built (add, sub).
+
+    Returns
+    -------
+    (word, flags) : Values of ``fmt.width`` and 5 bits (NX, UF, OF, DZ, NV from bit 0).
+
+    Tininess is detected after rounding: a nonzero result is tiny if, rounded to the precision
+    with an unbounded exponent, it is below ``2**emin``; UF is raised when it is tiny and
+    inexact (``ieee``) or flushed (``ftz``). Overflow gives an infinity with OF|NX.
+    Combinational except for the registers at the boundaries ``cuts`` chose.
+    """
+    sig = Value.cast(sig)
+    p, m = fmt.precision, fmt.frac_bits
+    width = len(sig)
+    guard = width - p
+    if guard < 2:
+        raise ValueError(f"round_pack needs at least {p + 2} significand bits for {fmt.name}, "
+                         f"got {width}")
+    # Normalise without letting the exponent fall below emin; a result below emin is shifted
+    # right instead. Both shift amounts come without arithmetic after the leading-zero count:
+    # the right shift depends on the exponent alone (and runs beside the count), and a one
+    # placed at the emin position caps the count at the left shift that reaches emin.
+    prep = exp if isinstance(exp, data.View) else \
+        prepare_exponent(cuts, fmt, exp, width, denormalise)
+    if len(prep.room) != width.bit_length():
+        raise ValueError(f"the prepared exponent is for another significand width than {width}")
+    if denormalise:
+        right = fmt.precision + 1
+        wide = cuts.wire("denorm", Cat(C(0, right), sig) >> prep.right)
+        sig_r, lost = wide[right:], wide[:right].any() | sticky
+    else:
+        sig_r, lost = sig, sticky
+    marker = cuts.wire("marker", Cat(prep.room == width - 1 - i for i in range(width)))
+    left = leading_zeros(cuts, sig | marker)
+    nonzero = cuts.wire("nonzero", sig.any())
+    v = cuts("round.shift", sign=sign, zero_sign=sign if zero_sign is None else zero_sign,
+             sig=sig_r, lost=lost, left=left, biased=prep.biased, below=prep.below,
+             nonzero=nonzero, is_nan=is_nan, is_inf=is_inf, is_zero=is_zero, invalid=invalid,
+             divbyzero=divbyzero)
+
+    shifted = (v.sig << v.left)[:width]
+    # Biased exponent minus one for a normal result (the rounded significand's hidden bit adds
+    # the one back; a carry out of the significand adds two), zero for subnormals (there the
+    # left shift is the room, back to emin) and for zero.
+    exp_base = Mux(v.nonzero & ~v.below, v.biased - v.left, 0)
+    v = cuts("round.round", sign=v.sign, zero_sign=v.zero_sign, shifted=shifted, lost=v.lost,
+             exp_base=exp_base, nonzero=v.nonzero, is_nan=v.is_nan, is_inf=v.is_inf,
+             is_zero=v.is_zero, invalid=v.invalid, divbyzero=v.divbyzero)
+
+    keep = v.shifted[guard:]
+    round_bit = v.shifted[guard - 1]
+    rest = cuts.wire("rest", v.shifted[:guard - 1].any() | v.lost)
+    inexact = round_bit | rest
+    mant = cuts.wire("mant", keep + (round_bit & (rest | keep[0])))  # carry, hidden, fraction
+    exp_field = cuts.wire("exp_field", v.exp_base + mant[m:])
+    overflow = exp_field >= fmt.exp_max_field
+    # ``shifted`` has its top bit at 2**emin. Tiny after rounding: below 2**emin, unless in
+    # [2**(emin-1), 2**emin) and rounding up to 2**emin at full precision, which needs the
+    # ones from 2**(emin-1) down to the round bit at that precision (bit G-2 here).
+    tiny = v.nonzero & ~v.shifted[width - 1] & ~v.shifted[guard - 2:width - 1].all()
+    v = cuts("round.select", sign=Mux(v.nonzero | v.lost, v.sign, v.zero_sign),
+             special_sign=v.sign, exp_field=exp_field[:fmt.exp_bits], frac=mant[:m],
+             overflow=overflow, inexact=inexact, tiny=tiny,
+             is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero, invalid=v.invalid,
+             divbyzero=v.divbyzero)
+
+    flush = v.tiny if subnormals == "ftz" else C(0, 1)
+    finite = Cat(v.frac, v.exp_field, v.sign)
+    # Tiny and overflowing results are disjoint, so a flush and an overflow never meet.
+    rounded = Mux(v.overflow, Cat(C(0, m), C(fmt.exp_max_field, fmt.exp_bits), v.sign),
+                  Mux(flush, Cat(C(0, fmt.width - 1), v.sign), finite))
+    special = Cat(C(0, m), Mux(v.is_inf, fmt.exp_max_field, 0)[:fmt.exp_bits], v.special_sign)
+    word = Mux(v.is_nan, fmt.canonical_nan, Mux(v.is_inf | v.is_zero, special, rounded))
+    rounded_flags = Cat(v.inexact | v.overflow | flush, v.tiny & (v.inexact | flush), v.overflow,
+                        C(0, 2))
+    special_flags = Cat(C(0, 3), v.divbyzero, v.invalid)
+    flags = Mux(v.is_nan | v.is_inf | v.is_zero, special_flags, rounded_flags)
+    return word, flags
