@@ -194,6 +194,16 @@ def waivers(verilog: str, top: str, header_lines: list[str]) -> str:
         "// operation that drives them; the design reads the bits it needs (a slice of a product).",
         f"lint_off -rule UNUSEDSIGNAL {f} -match \"*'$*\"",
     ]
+    zero_width = [n.lstrip("\\") for n in re.findall(r"^\s*wire \[-1:0\] (\S+)\s*;", verilog, re.M)]
+    if zero_width:
+        lines += [
+            "",
+            "// Yosys declares a net with no bits (a field of zero width, kept for its name) as",
+            "// `wire [-1:0]`; nothing drives or reads it. Listed one by one.",
+            f"lint_off -rule ASCRANGE {f} -match \"*bit range: ?-1:0?\"",
+        ]
+        lines += [f"lint_off -rule UNUSEDSIGNAL {f} -match \"Signal is not driven, nor used: '{n}'\""
+                  for n in zero_width]
     aliases = unused_aliases(verilog)
     if aliases:
         lines += [

@@ -52,7 +52,7 @@ ERRORS = [
     ("abbreviation", ["castella", "--track", "8"], "--track"),
     ("stray-argument", ["castella", "eight"], "eight"),
     ("missing-value", ["castella", "--tracks"], "--tracks"),
-    ("unknown-core", ["fpu"], "CORE"),
+    ("unknown-core", ["ukf"], "CORE"),
     ("no-core", [], "CORE"),
     ("no-output", ["castella", "--tracks", "2"], "-o"),
 ]
@@ -130,7 +130,8 @@ def test_help_lists_every_parameter():
         text = " ".join(kfgen(name, "--help").stdout.split())  # undo line wrapping
         for f in dataclasses.fields(core.params):
             assert option(f.name) in text, f.name
-            assert f"default {f.default}" in text, f.name
+            shown = "the unit's own" if f.default is None else f.default  # None: the unit picks
+            assert f"default {shown}" in text, f.name
             doc = core.docs()[f.name]
             assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text
         for key, (lo, hi) in RANGES.items():
