@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.kfgen-installed
 OUT    ?= out
 JOBS   ?= 2
 
-.PHONY: all verilog test test-full bench plots lint clean distclean
+.PHONY: all verilog test test-full bench bench-fpu plots lint clean distclean
 
 all: verilog
 
@@ -33,6 +33,9 @@ test-full: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m kfgen.gen.bench
+
+bench-fpu: $(STAMP)
+	$(PY) -m kfgen.gen.bench_fpu
 
 plots: $(STAMP)
 	$(PY) -m kfgen.sim.mc_verilator build/mc

