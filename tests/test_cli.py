@@ -134,8 +134,9 @@ def test_help_lists_every_parameter():
             assert f"default {shown}" in text, f.name
             doc = core.docs()[f.name]
             assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text
-        for key, (lo, hi) in RANGES.items():
-            assert str(lo) in text and str(hi) in text, key
+        if name == "castella":  # RANGES are the Castella parameters' ranges
+            for key, (lo, hi) in RANGES.items():
+                assert str(lo) in text and str(hi) in text, key
         assert "--config" in text and "-o DIR" in text
 
 
