@@ -3,11 +3,12 @@
 
 import numpy as np
 import pytest
-from amaranth.hdl import Module, Signal, signed, unsigned
+from amaranth.hdl import C, Module, Signal, signed, unsigned
 from amaranth.sim import Simulator
 
 from kfgen.hdl.arith.divide import gain_divider
 from kfgen.hdl.arith.fixed import rsr, saturate
+from kfgen.hdl.arith.multiply import shift_add_multiply
 from kfgen.hdl.arith.pipeline import Pipeline, Staged
 from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import CastellaParams, Fmt
@@ -159,3 +160,31 @@ def test_core_in_amaranth_simulator_matches_model():
             w |= (r[f["name"]] & ((1 << f["width"]) - 1)) << f["lsb"]
         want.append(w)
     assert got == want
+
+
+@pytest.mark.parametrize("const", [None, 28873])
+def test_shift_add_multiply_is_exact(const):
+    """Unsigned selector times a signed signal (or a constant), through the pipelined tree."""
+    m = Module()
+    pl = Pipeline(m)
+    a, b = Signal(5), Signal(signed(9))
+    rhs = Staged(b, 0) if const is None else Staged(C(const), 0)
+    prod = shift_add_multiply(pl, "p", Staged(a, 0), rhs)
+    assert prod.stage == 3  # ceil(log2(5)) adder levels
+    vecs = [(x, y) for x in range(32) for y in (-256, -255, -1, 0, 1, 77, 255)]
+    got = []
+
+    async def tb(ctx):
+        for i in range(len(vecs) + prod.stage):
+            if i < len(vecs):
+                ctx.set(a, vecs[i][0])
+                ctx.set(b, vecs[i][1])
+            if i >= prod.stage:
+                got.append(ctx.get(prod.sig))
+            await ctx.tick()
+
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    sim.add_testbench(tb)
+    sim.run()
+    assert got == [x * (y if const is None else const) for x, y in vecs]

@@ -1,0 +1,35 @@
+"""A multiplier built from LUTs and carry chains: partial products summed by a pipelined tree.
+
+On ECP5, Yosys maps ``*`` to a MULT18X18D without its internal registers, so every product
+costs ~4 ns inside the DSP plus the routing to and from it, the slowest path of the Castella
+core. For a narrow operand (a Kalman gain) the shift-and-add form is small and fast: one
+adder level per pipeline stage.
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Mux
+
+from .pipeline import Pipeline, Staged
+
+__all__ = ["shift_add_multiply"]
+
+
+def shift_add_multiply(pl: Pipeline, name: str, a: Staged, b: Staged) -> Staged:
+    """``a * b`` for an unsigned ``a`` and any ``b`` (a signal or a constant), exactly.
+
+    Partial products ``b << i`` selected by the bits of ``a`` are added pairwise, a level
+    of the tree per stage: latency ``ceil(log2(len(a)))`` cycles (at least 1), one product
+    per clock.
+    """
+    width = len(a.sig)
+    if a.sig.shape().signed:
+        raise TypeError(f"{name}: the selecting operand must be unsigned")
+    terms = [pl.comb(f"{name}_pp{i}", lambda x, y, i=i: Mux(x[i], y << i, 0), a, b) for i in range(width)]
+    level = 0
+    while len(terms) > 1 or level == 0:
+        pairs = [terms[j:j + 2] for j in range(0, len(terms), 2)]
+        terms = [pl.reg(f"{name}_l{level}_{j}", (lambda u, v: u + v) if len(pr) == 2 else (lambda u: u), *pr)
+                 for j, pr in enumerate(pairs)]
+        level += 1
+    return terms[0]
