@@ -28,9 +28,9 @@ class FloatAdd(FloatUnit):
         Operand and result format (default ``binary32``).
     subnormals : "ieee" or "ftz"
     stages : int or None
-        Register stages, 0 to 8: the latency in cycles. ``None`` is 4 (a guess at 100 MHz on
-        ECP5 for binary32; the registers sit before the alignment shift, before the
-        normalisation, before the rounding increment, and at the output).
+        Register stages, 0 to 8: the latency in cycles. ``None`` is 6 (over 100 MHz on an
+        ECP5-85 for binary32: registers before the alignment shift, before the add, after it,
+        before the normalising shift, before the rounding increment, and at the output).
     subtract : bool
         Compute ``a - b`` (``b``'s sign inverted before anything else, NaNs included).
 
@@ -63,7 +63,7 @@ class FloatAdd(FloatUnit):
         7: ("align", "add", "norm", _R[0], _R[1], _R[2], "out"),
         8: ("in", "align", "add", "norm", _R[0], _R[1], _R[2], "out"),
     }
-    DEFAULT_STAGES = 4
+    DEFAULT_STAGES = 6
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None, subtract: bool = False):
@@ -88,16 +88,22 @@ class FloatAdd(FloatUnit):
         mag = fmt.width - 1
         swap = cuts.wire("swap", v.b[:mag] > v.a[:mag])
         big_sig, small_sig = Mux(swap, b.sig, a.sig), Mux(swap, a.sig, b.sig)
-        # Both exponent differences beside the magnitude compare, which picks one. Past p + 2
-        # places every bit of the smaller operand is sticky.
-        cap = p + 2
-        a_b = cuts.wire("exp_a_b", a.exp - b.exp)
-        b_a = cuts.wire("exp_b_a", b.exp - a.exp)
-        diff = Mux(swap, Mux(b_a > cap, cap, b_a), Mux(a_b > cap, cap, a_b))[:cap.bit_length()]
+        # Both exponent differences beside the magnitude compare, which picks one. From p + 2
+        # places on every bit of the smaller operand is sticky: a difference with a bit set
+        # above those counting to p + 2 becomes the largest shift they count to.
+        bits = (p + 2).bit_length()
+        a_b = cuts.wire("exp_a_b", a.biased - b.biased)
+        b_a = cuts.wire("exp_b_a", b.biased - a.biased)
+
+        def capped(d):  # (garbage when negative: then the other one is picked)
+            return Mux(d[bits:].any(), (1 << bits) - 1, d[:bits])
+
         inf_inf = cuts.wire("inf_inf", a.is_inf & b.is_inf & (a.sign ^ b_sign))
-        # The sum's top (carry) bit weighs 2**(larger exponent + 1).
-        exp = prepare_exponent(cuts, fmt, Mux(swap, b.exp, a.exp) + 1, p + 4, denormalise=False)
-        v = cuts("align", big_sig=big_sig, small_sig=small_sig, diff=diff, exp=exp,
+        v = cuts("align", big_sig=big_sig, small_sig=small_sig,
+                 diff=Mux(swap, capped(b_a), capped(a_b)),
+                 # The sum's top (carry) bit weighs 2**(e + 1) for the larger exponent e: its
+                 # room above emin is e + 1 - emin, the larger biased exponent.
+                 room=Mux(swap, b.biased, a.biased),
                  sub=a.sign ^ b_sign,
                  sign=Mux(a.is_inf, a.sign, Mux(b.is_inf, b_sign, Mux(swap, b_sign, a.sign))),
                  zero_sign=a.sign & b_sign,
@@ -106,10 +112,12 @@ class FloatAdd(FloatUnit):
                  invalid=a.is_snan | b.is_snan | inf_inf)
 
         # Sum layout (p + 4 bits): carry | significand (p) | two guard bits | sticky.
-        wide = Cat(C(0, p + 2), C(0, 2), v.small_sig) >> v.diff
-        small = Cat(wide[:p + 2].any(), wide[p + 2:])
+        most = (1 << len(v.diff)) - 1  # the longest shift: the lost bits still in the vector
+        wide = Cat(C(0, most), C(0, 2), v.small_sig) >> v.diff
+        small = Cat(wide[:most].any(), wide[most:])
         big = Cat(C(0, 3), v.big_sig)
-        v = cuts("add", big=big, small=small, sub=v.sub, exp=v.exp, sign=v.sign,
+        exp = prepare_exponent(cuts, fmt, None, p + 4, denormalise=False, room=v.room)
+        v = cuts("add", big=big, small=small, sub=v.sub, exp=exp, sign=v.sign,
                  zero_sign=v.zero_sign, is_nan=v.is_nan, is_inf=v.is_inf, invalid=v.invalid)
 
         # The larger magnitude comes first, so the difference is never negative; the sticky

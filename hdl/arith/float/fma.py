@@ -6,6 +6,7 @@ from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
+from .mul import partial_products, sum_partial_products
 from .round import ROUND_BOUNDARIES, FloatUnit, prepare_exponent, round_pack, unpack
 
 __all__ = ["FloatFMA"]
@@ -16,7 +17,8 @@ _R = ROUND_BOUNDARIES  # round.shift, round.round, round.select
 class FloatFMA(FloatUnit):
     """``a * b + c`` computed exactly and rounded once, to nearest even.
 
-    The exact ``2p``-bit product (``p`` = precision) sits at a fixed place in a frame of
+    The exact ``2p``-bit product (``p`` = precision, made as :class:`~.mul.FloatMul` makes
+    it, from partial products) sits at a fixed place in a frame of
     ``F = L + 3p + 4`` bits; the addend is shifted right from the top of the frame to its place
     relative to the product, its lost bits folded into the frame's lowest bit (a sticky bit
     that makes a borrow come out right). From the bottom: the sticky bit, ``L - 1`` zeros, the
@@ -39,10 +41,11 @@ class FloatFMA(FloatUnit):
         Operand and result format (default ``binary32``).
     subnormals : "ieee" or "ftz"
     stages : int or None
-        Register stages, 0 to 8: the latency in cycles. ``None`` is 6 (a guess at 100 MHz on
-        ECP5 for binary32; registers before the multiplier, before the wide add, before the
-        normalisation, before the normalising shifter, before the rounding increment, and at
-        the output).
+        Register stages, 0 to 9: the latency in cycles. ``None`` is 7 (registers before and
+        after the multipliers, which run beside the addend's alignment, after the sum of their
+        partial products, after the wide add, before the normalising shift, before the rounding
+        increment, and at the output). That is 78-88 MHz on an ECP5-85 for binary32, short of
+        100: the leading-zero count over the ``F``-bit sum (104 bits) takes a whole cycle.
 
     Members
     -------
@@ -66,14 +69,15 @@ class FloatFMA(FloatUnit):
         0: (),
         1: ("out",),
         2: ("norm", "out"),
-        3: ("add", "norm", "out"),
-        4: ("mul", "add", "norm", "out"),
-        5: ("mul", "add", "norm", _R[1], "out"),
-        6: ("mul", "add", "norm", _R[0], _R[1], "out"),
-        7: ("mul", "add", "norm", _R[0], _R[1], _R[2], "out"),
-        8: ("in", "mul", "add", "norm", _R[0], _R[1], _R[2], "out"),
+        3: ("mul.sum", "norm", "out"),
+        4: ("mul", "mul.sum", "norm", "out"),
+        5: ("mul", "mul.sum", "norm", _R[1], "out"),
+        6: ("mul", "mul.sum", "add", "norm", _R[1], "out"),
+        7: ("mul", "mul.sum", "add", "norm", _R[0], _R[1], "out"),
+        8: ("mul", "mul.sum", "add", "norm", _R[0], _R[1], _R[2], "out"),
+        9: ("in", "mul", "mul.sum", "add", "norm", _R[0], _R[1], _R[2], "out"),
     }
-    DEFAULT_STAGES = 6
+    DEFAULT_STAGES = 7
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
@@ -91,36 +95,52 @@ class FloatFMA(FloatUnit):
         b = unpack(fmt, v.b, self.subnormals)
         c = unpack(fmt, v.c, self.subnormals)
         prod_sign = a.sign ^ b.sign
-        prod_exp = cuts.wire("prod_exp", a.exp + b.exp + 1)  # weight of the product's top bit
         zero_inf = cuts.wire("zero_inf", a.is_zero & b.is_inf | a.is_inf & b.is_zero)
         prod_inf = cuts.wire("prod_inf", (a.is_inf | b.is_inf) & ~a.is_nan & ~b.is_nan & ~zero_inf)
         inf_inf = cuts.wire("inf_inf", prod_inf & c.is_inf & (prod_sign ^ c.sign))
-        # Right shift of the addend from the top of the frame; at or above the top, or with a
-        # zero product, the frame is anchored to the addend instead.
-        shift = cuts.wire("shift", p + 3 + prod_exp - c.exp)
-        at_top = cuts.wire("at_top", a.is_zero | b.is_zero | (shift < 0) & ~c.is_zero)
-        shift = Mux(at_top, 0, Mux(shift > frame - 2, frame - 2, shift))
-        v = cuts("mul", sig_a=a.sig, sig_b=b.sig, sig_c=c.sig,
-                 shift=shift[:(frame - 2).bit_length()],
-                 exp=Mux(at_top, c.exp + 1, prod_exp + p + 4),  # weight of the frame's top bit
+        # Right shift of the addend from the top of the frame, p + 3 + (ea + eb + 1) - ec (the
+        # product's top bit weighs 2**(ea + eb + 1)), on biased exponents. At or above the top,
+        # or with a zero product, the frame is anchored to the addend instead.
+        # (Two adds deep: the constant goes with the addend's exponent.)
+        offset = p + 4 - fmt.bias
+        prod_biased = cuts.wire("prod_biased", a.biased + b.biased)
+        shift = cuts.wire("shift", prod_biased - (c.biased - offset))
+        at_top = cuts.wire("at_top", a.is_zero | b.is_zero | shift[-1] & ~c.is_zero)
+        # From frame - 2 places on the addend is all sticky: a shift with a bit set above
+        # those counting to frame - 2 becomes the largest shift they count to.
+        bits = (frame - 2).bit_length()
+        shift = Mux(at_top, 0, Mux(shift[bits:].any(), (1 << bits) - 1, shift[:bits]))
+        v = cuts("mul", sig_a=a.sig, sig_b=b.sig, sig_c=c.sig, shift=shift,
+                 # Room above emin of the frame's top bit: it weighs 2**(ec + 1) anchored to
+                 # the addend, 2**(ea + eb + 1 + p + 4) to the product.
+                 room=Mux(at_top, c.biased, prod_biased + offset),
                  prod_sign=prod_sign, c_sign=c.sign,
                  is_nan=a.is_nan | b.is_nan | c.is_nan | zero_inf | inf_inf,
                  is_inf=prod_inf | c.is_inf,
                  inf_sign=Mux(prod_inf, prod_sign, c.sign),
                  invalid=a.is_snan | b.is_snan | c.is_snan | zero_inf | inf_inf)
 
-        exp = prepare_exponent(cuts, fmt, v.exp, frame)  # (beside the multiplier)
-        product = Cat(C(0, low), v.sig_a * v.sig_b, C(0, p + 4))
-        wide = Cat(C(0, frame - 2), C(0, frame - 2 - p), v.sig_c) >> v.shift
-        addend = Cat(wide[:frame - 2].any(), wide[frame - 2:], C(0, 1))
-        v = cuts("add", product=product, addend=addend, exp=exp, prod_sign=v.prod_sign,
+        # Beside the multipliers: the exponent side of the rounding, the addend's alignment.
+        exp = prepare_exponent(cuts, fmt, None, frame, room=v.room)
+        most = (1 << len(v.shift)) - 1  # the longest shift: the lost bits still in the vector
+        wide = Cat(C(0, most), C(0, frame - 2 - p), v.sig_c) >> v.shift
+        addend = Cat(wide[:most].any(), wide[most:], C(0, 1))
+        v = cuts("mul.sum", **partial_products(v.sig_a, v.sig_b), addend=addend, exp=exp,
+                 prod_sign=v.prod_sign, c_sign=v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf,
+                 inf_sign=v.inf_sign, invalid=v.invalid)
+
+        product = Cat(C(0, low), sum_partial_products(v, 2 * p), C(0, p + 4))
+        v = cuts("add", product=product, addend=v.addend, exp=v.exp, prod_sign=v.prod_sign,
                  c_sign=v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign,
                  invalid=v.invalid)
 
+        # One adder for the sum or the difference (the carry in under the lowest bit), a
+        # second for the difference the other way round, picked when the first is negative.
         sub = v.prod_sign ^ v.c_sign
-        diff = cuts.wire("diff", v.product - v.addend)
-        negative = cuts.wire("negative", sub & diff[frame])
-        total = Mux(sub, Mux(negative, v.addend - v.product, diff), v.product + v.addend)
+        addend = Mux(sub, ~v.addend, v.addend)
+        either = cuts.wire("either", (Cat(sub, v.product) + Cat(sub, addend))[1:])
+        negative = cuts.wire("negative", sub & ~either[frame])  # no carry: product < addend
+        total = Mux(negative, v.addend - v.product, either)
         sign = Mux(v.is_inf, v.inf_sign, Mux(negative, v.c_sign, v.prod_sign))
         v = cuts("norm", total=total[:frame], exp=v.exp, sign=sign,
                  zero_sign=v.prod_sign & v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf,

@@ -110,8 +110,9 @@ class Cuts:
 
     The datapath passes every live value through each boundary by name
     (``v = cuts("align", sign=s, exp=e)``); at a chosen boundary they are registered, elsewhere
-    they pass through as wires. Data registers have no reset; the ``valid`` bit beside them has
-    one, so the pipeline comes out of reset empty.
+    they pass through as wires (a ``data.View`` stays a view of its layout). Data registers
+    have no reset; the ``valid`` bit beside them has one, so the pipeline comes out of reset
+    empty.
 
     Parameters
     ----------
@@ -175,10 +176,13 @@ def unpack(fmt: FloatFormat, word, subnormals: str = "ieee") -> SimpleNamespace:
     """Decode an operand word.
 
     Returns a namespace of values: ``sign``; ``exp``, the unbiased exponent (signed, ``emin``
-    for zeros and subnormals); ``sig``, the significand with its hidden bit (``fmt.precision``
-    bits, value ``sig * 2**(exp - frac_bits)``); and the class bits ``is_zero``, ``is_sub``,
-    ``is_normal``, ``is_inf``, ``is_nan`` (either kind), ``is_qnan``, ``is_snan``. With ``subnormals="ftz"`` a subnormal reads as a zero of
-    its sign (``is_zero`` set, ``sig`` zero, ``is_sub`` clear).
+    for zeros and subnormals); ``biased``, the same biased (the exponent field, but 1 for
+    zeros and subnormals: no add, so exponent arithmetic on it is shorter); ``sig``, the
+    significand with its hidden bit (``fmt.precision`` bits, value
+    ``sig * 2**(exp - frac_bits)``); and the class bits ``is_zero``, ``is_sub``,
+    ``is_normal``, ``is_inf``, ``is_nan`` (either kind), ``is_qnan``, ``is_snan``. With
+    ``subnormals="ftz"`` a subnormal reads as a zero of its sign (``is_zero`` set, ``sig``
+    zero, ``is_sub`` clear).
     """
     word = Value.cast(word)
     m, e = fmt.frac_bits, fmt.exp_bits
@@ -192,10 +196,11 @@ def unpack(fmt: FloatFormat, word, subnormals: str = "ieee") -> SimpleNamespace:
     is_sub = C(0, 1) if ftz else field_zero & ~frac_zero
     is_zero = field_zero if ftz else field_zero & frac_zero
     is_nan = field_ones & ~frac_zero
-    exp = Mux(field_zero, fmt.emin, Cat(field, C(0, 1)).as_signed() - fmt.bias)
+    biased = Mux(field_zero, 1, field)
+    exp = Cat(biased, C(0, 1)).as_signed() - fmt.bias
     sig = Mux(field_zero, 0, Cat(frac, C(1, 1))) if ftz else Cat(frac, ~field_zero)
     return SimpleNamespace(
-        sign=sign, exp=exp, sig=sig, is_zero=is_zero, is_sub=is_sub,
+        sign=sign, exp=exp, biased=biased, sig=sig, is_zero=is_zero, is_sub=is_sub,
         is_normal=~field_zero & ~field_ones, is_inf=field_ones & frac_zero, is_nan=is_nan,
         is_qnan=is_nan & frac[m - 1], is_snan=is_nan & ~frac[m - 1])
 
@@ -217,7 +222,8 @@ def leading_zeros(cuts: Cuts, x, name: str = "lz") -> Value:
         if len(v) == 2:
             return ~v[1], cuts.wire(f"{name}_any{path}", v[0] | v[1])
         half = len(v) // 2
-        (count_hi, any_hi), (count_lo, any_lo) = tree(v[half:], path + "h"), tree(v[:half], path + "l")
+        count_hi, any_hi = tree(v[half:], path + "h")
+        count_lo, any_lo = tree(v[:half], path + "l")
         count = cuts.wire(f"{name}_count{path}", Cat(Mux(any_hi, count_hi, count_lo), ~any_hi))
         return count, cuts.wire(f"{name}_any{path}", any_hi | any_lo)
 
@@ -231,34 +237,44 @@ def _signed(v) -> Value:
 
 
 def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
-                     denormalise: bool = True) -> data.View:
+                     denormalise: bool = True, *, room=None) -> data.View:
     """The exponent side of :func:`round_pack`, to compute before the significand is ready.
 
     Pass the result through the datapath's boundaries and give it to :func:`round_pack` as
     ``exp`` (with a ``width``-bit ``sig`` and the same ``denormalise``): the adds and compares
-    on the exponent then leave the path through the leading-zero count. Fields: ``biased``,
-    the exponent plus ``bias - 1``; ``below``, the exponent is below ``emin``; ``right``, the
-    denormalising right shift (capped where every bit is sticky); ``room``, the left shift
-    that puts the top bit at ``emin`` (0 to ``width``).
+    on the exponent then stay off the path through the leading-zero count.
+
+    Give either ``exp``, the exponent of ``sig``'s top bit (as :func:`round_pack` takes it), or
+    ``room = exp - emin``: the left shift that brings the top bit to ``emin``, which is also
+    the biased exponent field the top bit would have minus one. Units working on biased
+    exponent fields get it without an add (``None`` for ``exp`` then).
+
+    Fields: ``room``; ``below``, ``room < 0``; ``right``, the denormalising right shift
+    (capped where every bit is sticky); ``cap``, ``room`` clamped to 0 .. ``width`` (for the
+    one that limits the leading-zero count).
     """
-    exp = _signed(exp)
+    if (exp is None) == (room is None):
+        raise ValueError("prepare_exponent takes one of exp and room")
+    if room is None:
+        room = _signed(exp) - fmt.emin
+    room = cuts.wire("room", _signed(room))
     right_max = fmt.precision + 1 if denormalise else 0
     layout = data.StructLayout({
-        "biased": signed(max(len(exp), fmt.exp_bits + 2) + 1),
+        "room": room.shape(),
         "below": unsigned(1),
         "right": unsigned(right_max.bit_length()),
-        "room": unsigned(width.bit_length()),
+        "cap": unsigned(width.bit_length()),
     })
-    room = cuts.wire("room", exp - fmt.emin)      # left shift that puts the MSB at emin
     prep = Signal(layout, name="exponent")
+    below = room < 0
     cuts._m.d.comb += [
-        prep.biased.eq(exp + (fmt.bias - 1)),
-        prep.below.eq(room < 0),
-        prep.room.eq(Mux(room < 0, 0, Mux(room > width, width, room))),
+        prep.room.eq(room),
+        prep.below.eq(below),
+        prep.cap.eq(Mux(below, 0, Mux(room > width, width, room))),
     ]
     if denormalise:
         # Past p + 1 places the round bit is zero and every bit is sticky.
-        cuts._m.d.comb += prep.right.eq(Mux(room < -right_max, right_max, Mux(room < 0, -room, 0)))
+        cuts._m.d.comb += prep.right.eq(Mux(room < -right_max, right_max, Mux(below, -room, 0)))
     return prep
 
 
@@ -322,7 +338,7 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
     # placed at the emin position caps the count at the left shift that reaches emin.
     prep = exp if isinstance(exp, data.View) else \
         prepare_exponent(cuts, fmt, exp, width, denormalise)
-    if len(prep.room) != width.bit_length():
+    if len(prep.cap) != width.bit_length():
         raise ValueError(f"the prepared exponent is for another significand width than {width}")
     if denormalise:
         right = fmt.precision + 1
@@ -330,19 +346,19 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
         sig_r, lost = wide[right:], wide[:right].any() | sticky
     else:
         sig_r, lost = sig, sticky
-    marker = cuts.wire("marker", Cat(prep.room == width - 1 - i for i in range(width)))
+    marker = cuts.wire("marker", Cat(prep.cap == width - 1 - i for i in range(width)))
     left = leading_zeros(cuts, sig | marker)
     nonzero = cuts.wire("nonzero", sig.any())
     v = cuts("round.shift", sign=sign, zero_sign=sign if zero_sign is None else zero_sign,
-             sig=sig_r, lost=lost, left=left, biased=prep.biased, below=prep.below,
+             sig=sig_r, lost=lost, left=left, room=prep.room, below=prep.below,
              nonzero=nonzero, is_nan=is_nan, is_inf=is_inf, is_zero=is_zero, invalid=invalid,
              divbyzero=divbyzero)
 
     shifted = (v.sig << v.left)[:width]
     # Biased exponent minus one for a normal result (the rounded significand's hidden bit adds
-    # the one back; a carry out of the significand adds two), zero for subnormals (there the
-    # left shift is the room, back to emin) and for zero.
-    exp_base = Mux(v.nonzero & ~v.below, v.biased - v.left, 0)
+    # the one back; a carry out of the significand adds two): ``room - left``, which is zero
+    # for subnormals (there the left shift is the room, back to emin); zero for zero too.
+    exp_base = Mux(v.nonzero & ~v.below, v.room - v.left, 0)
     v = cuts("round.round", sign=v.sign, zero_sign=v.zero_sign, shifted=shifted, lost=v.lost,
              exp_base=exp_base, nonzero=v.nonzero, is_nan=v.is_nan, is_inf=v.is_inf,
              is_zero=v.is_zero, invalid=v.invalid, divbyzero=v.divbyzero)
@@ -351,9 +367,15 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
     round_bit = v.shifted[guard - 1]
     rest = cuts.wire("rest", v.shifted[:guard - 1].any() | v.lost)
     inexact = round_bit | rest
-    mant = cuts.wire("mant", keep + (round_bit & (rest | keep[0])))  # carry, hidden, fraction
-    exp_field = cuts.wire("exp_field", v.exp_base + mant[m:])
-    overflow = exp_field >= fmt.exp_max_field
+    # The incremented significand, the exponent plus the carry and hidden bits it may have,
+    # and the overflow compares are all made beside the rounding decision, which selects.
+    up = cuts.wire("up", keep + 1)
+    # carry | hidden | fraction
+    mant = cuts.wire("mant", Mux(round_bit & (rest | keep[0]), up, keep))
+    top = fmt.exp_max_field
+    exp_field = Mux(mant[p], v.exp_base + 2, Mux(mant[m], v.exp_base + 1, v.exp_base))
+    overflow = Mux(mant[p], v.exp_base >= top - 2,
+                   Mux(mant[m], v.exp_base >= top - 1, v.exp_base >= top))
     # ``shifted`` has its top bit at 2**emin. Tiny after rounding: below 2**emin, unless in
     # [2**(emin-1), 2**emin) and rounding up to 2**emin at full precision, which needs the
     # ones from 2**(emin-1) down to the round bit at that precision (bit G-2 here).
