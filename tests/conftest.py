@@ -1,3 +1,4 @@
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -5,7 +6,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-BUILD = ROOT / "build" / "tests"
+# KFGEN_TEST_BUILD moves the work files (for runs side by side in one checkout).
+BUILD = Path(os.environ.get("KFGEN_TEST_BUILD", ROOT / "build" / "tests")).resolve()
 
 
 def pytest_addoption(parser):
