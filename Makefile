@@ -33,6 +33,7 @@ test-full: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m kfgen.gen.bench
+	$(PY) -m kfgen.gen.bench_fpu
 
 bench-fpu: $(STAMP)
 	$(PY) -m kfgen.gen.bench_fpu

