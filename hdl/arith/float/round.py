@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from amaranth.hdl import C, Cat, Module, Mux, Shape, Signal, Value, signed, unsigned
+from amaranth.hdl import C, Cat, Const, Module, Mux, Shape, Signal, Value, signed, unsigned
 from amaranth.lib import data, wiring
 
 from .format import FloatFormat
@@ -208,26 +208,70 @@ def unpack(fmt: FloatFormat, word, subnormals: str = "ieee") -> SimpleNamespace:
 def leading_zeros(cuts: Cuts, x, name: str = "lz") -> Value:
     """Count of leading zero bits of ``x`` (``len(x)`` when ``x`` is zero), a log-depth tree.
 
-    ``cuts`` gives the combinational signals the tree nodes are made of.
+    ``x`` is a value, or its bits lowest first (each ``0``, ``1`` or a 1-bit value). Subtrees
+    whose bits are constants (the padding below ``x``, constant parts of a ``Cat``) are
+    evaluated here instead of built: the back end would fold them anyway and leave their named
+    signals unused. ``cuts`` gives the combinational signals the other nodes are made of.
     """
-    x = Value.cast(x)
-    width = len(x)
+    bits = list(x) if isinstance(x, (list, tuple)) else _bits(x)
+    width = len(bits)
     n = 2
     while n < width + 1:
         n *= 2
+    variable = [b for b in bits if not isinstance(b, int)]
+    if variable:
+        wire = cuts.wire(f"{name}_in", Cat(variable))
+        wire_bits = iter(wire[i] for i in range(len(variable)))
+        bits = [b if isinstance(b, int) else next(wire_bits) for b in bits]
     # A one below ``x`` caps the count at ``width`` and keeps every subtree's answer defined.
-    padded = cuts.wire(f"{name}_in", Cat(C(0, n - width - 1), C(1, 1), x))
+    padded = [0] * (n - width - 1) + [1] + bits
+
+    def _any(lo, hi, path):
+        """``lo | hi``, a named signal when it is made of two values (but not at the root,
+        where nothing uses it)."""
+        if isinstance(lo, int) or isinstance(hi, int) or not path:
+            return _or(hi, lo)
+        return cuts.wire(f"{name}_any{path}", hi | lo)
 
     def tree(v, path):
+        """``(count, any)`` of the bits ``v``, ints where they are constants."""
         if len(v) == 2:
-            return ~v[1], cuts.wire(f"{name}_any{path}", v[0] | v[1])
+            lo, hi = v
+            return (1 - hi if isinstance(hi, int) else ~hi), _any(lo, hi, path)
         half = len(v) // 2
         count_hi, any_hi = tree(v[half:], path + "h")
         count_lo, any_lo = tree(v[:half], path + "l")
-        count = cuts.wire(f"{name}_count{path}", Cat(Mux(any_hi, count_hi, count_lo), ~any_hi))
-        return count, cuts.wire(f"{name}_any{path}", any_hi | any_lo)
+        level = len(v).bit_length() - 2  # bits of a half's count
+        if isinstance(any_hi, int):  # the half that decides is known
+            part, top = (count_hi, 0) if any_hi else (count_lo, 1)
+            count = part + (top << level) if isinstance(part, int) else Cat(part, C(top, 1))
+        else:
+            count = cuts.wire(f"{name}_count{path}", Cat(
+                Mux(any_hi, _const(count_hi, level), _const(count_lo, level)), ~any_hi))
+        return count, _any(any_lo, any_hi, path)
 
-    return tree(padded, "")[0]
+    count = tree(padded, "")[0]
+    return C(count, n.bit_length() - 1) if isinstance(count, int) else count
+
+
+#: Amaranth's class of concatenations (``Cat``), which it does not export.
+_Concat = type(Cat())
+
+
+def _bits(value) -> list:
+    """The bits of ``value``, lowest first: ``0`` or ``1`` where a part of it is a constant
+    (seen through ``Cat``), else 1-bit slices."""
+    value = Value.cast(value)
+    if isinstance(value, Const):
+        return [(value.value >> i) & 1 for i in range(len(value))]
+    if isinstance(value, _Concat):
+        return [bit for part in value.parts for bit in _bits(part)]
+    return [value[i] for i in range(len(value))]
+
+
+def _const(value, width: int) -> Value:
+    """``value`` as a value, an int as a ``width``-bit constant."""
+    return C(value, width) if isinstance(value, int) else value
 
 
 def _signed(v) -> Value:
@@ -276,6 +320,30 @@ def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
         # Past p + 1 places the round bit is zero and every bit is sticky.
         cuts._m.d.comb += prep.right.eq(Mux(room < -right_max, right_max, Mux(below, -room, 0)))
     return prep
+
+
+def _or(a, b):
+    """``a | b`` of two bits, each ``0``, ``1`` or a 1-bit value."""
+    if isinstance(a, int) or isinstance(b, int):
+        known, other = (a, b) if isinstance(a, int) else (b, a)
+        return 1 if known else other
+    return a | b
+
+
+def _marker(cuts: Cuts, fmt: FloatFormat, prep, exp, width: int) -> list:
+    """The bits, lowest first, of a ``width``-bit vector with a one where a significand's top
+    bit would weigh ``2**emin`` (none if it weighs less): worked out here for a constant
+    ``exp`` (a conversion's), so that the leading-zero count folds it in."""
+    if not isinstance(exp, data.View):
+        try:
+            room = Const.cast(exp).value - fmt.emin
+        except TypeError:  # not a constant
+            pass
+        else:
+            cap = min(max(room, 0), width)  # as ``prep.cap``
+            return [int(cap == width - 1 - i) for i in range(width)]
+    marker = cuts.wire("marker", Cat(prep.cap == width - 1 - i for i in range(width)))
+    return [marker[i] for i in range(width)]
 
 
 def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_sign=None,
@@ -346,8 +414,7 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
         sig_r, lost = wide[right:], wide[:right].any() | sticky
     else:
         sig_r, lost = sig, sticky
-    marker = cuts.wire("marker", Cat(prep.cap == width - 1 - i for i in range(width)))
-    left = leading_zeros(cuts, sig | marker)
+    left = leading_zeros(cuts, [_or(s, k) for s, k in zip(_bits(sig), _marker(cuts, fmt, prep, exp, width))])
     nonzero = cuts.wire("nonzero", sig.any())
     v = cuts("round.shift", sign=sign, zero_sign=sign if zero_sign is None else zero_sign,
              sig=sig_r, lost=lost, left=left, room=prep.room, below=prep.below,
