@@ -163,9 +163,19 @@ def unused_aliases(verilog: str) -> list[str]:
         if _WIRING.sub("", expr):
             continue  # logic, not a renaming
         sources = {_plain(n) for n in _IDENT.findall(re.sub(r"\[[^\]]*\]|\d+'\w+", " ", expr))}
-        if all(reads[src] >= 2 for src in sources):
+        if all(reads[src] >= 2 or _inverted_copy(src, rhs, reads) for src in sources):
             aliases.append(name)
     return sorted(aliases)
+
+
+def _inverted_copy(src: str, rhs: dict, reads) -> bool:
+    """``src`` is a ``$`` temporary that only inverts a net read elsewhere (``assign $145 = ~$144;``):
+    the writer builds such a bit for a renaming and then reads the uninverted net instead."""
+    exprs = rhs.get(src, ())
+    if not src.startswith("$") or len(exprs) != 1:
+        return False
+    inner = re.fullmatch(r"\s*[~!]\s*(\\?\$?[\w$]+)\s*", exprs[0])
+    return bool(inner) and reads[_plain(inner.group(1))] >= 2
 
 
 def waivers(verilog: str, top: str, header_lines: list[str]) -> str:

@@ -1,4 +1,4 @@
-"""`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus."""
+"""`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus and Verilator."""
 
 import json
 import subprocess
@@ -6,7 +6,7 @@ import subprocess
 import pytest
 
 from kfgen.hdl.arith.float.params import OPS, FpuParams
-from kfgen.sim.toolchain import iverilog
+from kfgen.sim.toolchain import iverilog, run_verilator
 
 from conftest import kfgen
 
@@ -74,3 +74,35 @@ def test_icarus_compiles(tmp_path, args):
     ic = subprocess.run([iverilog(), "-g2012", "-o", str(tmp_path / "u.vvp"), str(tmp_path / "u.v")],
                         capture_output=True, text=True)
     assert ic.returncode == 0, ic.stderr
+
+
+def _min_stages(op):
+    return min(s for s in FpuParams(op=op).build().PLANS if s >= 1)
+
+
+#: Cores linted: every operation's default, then other formats (a constant exponent and a padded
+#: significand in i2f binary64, the split leading-zero count of fma), the fewest stages (the
+#: most logic between registers, where Yosys folds the most), ftz, and iterative cores.
+LINT_CONFIGS = {
+    **{op: ["--op", op] for op in OPS},
+    **{f"{op}_{fmt}": ["--op", op, "--format", fmt] for op, fmt in [
+        ("add", "binary16"), ("fma", "binary16"), ("sqrt", "binary16"),
+        ("mul", "binary64"), ("fma", "binary64"), ("div", "binary64"), ("i2f", "binary64"),
+        ("f2i", "binary64"), ("add", "e6m11"), ("fma", "e6m11"), ("sqrt", "e6m11")]},
+    **{f"{op}_min": ["--op", op, "--stages", str(_min_stages(op))]
+       for op in ("add", "mul", "fma", "div", "i2f", "f2i")},
+    **{f"{op}_ftz": ["--op", op, "--subnormals", "ftz"] for op in ("add", "mul", "fma", "div")},
+    "div_cpo4": ["--op", "div", "--cycles-per-op", "4"],
+    "div_cpo26": ["--op", "div", "--cycles-per-op", "26", "--format", "binary64"],
+    "sqrt_cpo4": ["--op", "sqrt", "--cycles-per-op", "4"],
+}
+
+
+@pytest.mark.parametrize("args", list(LINT_CONFIGS.values()), ids=list(LINT_CONFIGS))
+def test_verilator_lint_clean(tmp_path, args):
+    """``verilator -Wall --lint-only`` with the core's own waivers: not one warning."""
+    kfgen("fpu", *args, "--name", "u", "-o", tmp_path)
+    proc = run_verilator(["--lint-only", "-Wall", str(tmp_path / "u.vlt"), str(tmp_path / "u.v"),
+                          "--top-module", "u"])
+    messages = [line for line in proc.stderr.splitlines() if line.startswith("%")]
+    assert proc.returncode == 0 and not messages, "\n".join(messages)

@@ -8,11 +8,11 @@ adder level per pipeline stage.
 
 from __future__ import annotations
 
-from amaranth.hdl import Mux
+from amaranth.hdl import Mux, Value
 
 from .pipeline import Pipeline, Staged
 
-__all__ = ["shift_add_multiply"]
+__all__ = ["shift_add_multiply", "sum_rows"]
 
 
 def shift_add_multiply(pl: Pipeline, name: str, a: Staged, b: Staged) -> Staged:
@@ -33,3 +33,22 @@ def shift_add_multiply(pl: Pipeline, name: str, a: Staged, b: Staged) -> Staged:
                  for j, pr in enumerate(pairs)]
         level += 1
     return terms[0]
+
+
+def sum_rows(rows) -> Value:
+    """``sum(rows[i] << i)``: the second half of a shift-and-add product, combinational.
+
+    ``rows`` are unsigned values, ``rows[i]`` being the multiplicand if bit ``i`` of the
+    multiplier is set, else zero (selected by the caller, perhaps a register earlier). They
+    are added pairwise in a balanced tree, ``ceil(log2(len(rows)))`` adders deep, in LUTs and
+    carry chains: synthesis never maps this onto a DSP block as it does ``*``. The result is
+    exact (wide enough for the sum).
+    """
+    # (value, weight of its bit 0): adjacent rows are paired, so a sum is only as wide as the
+    # rows it spans.
+    terms = [(Value.cast(row), i) for i, row in enumerate(rows)]
+    while len(terms) > 1:
+        paired = [(lo + (hi << (at_hi - at_lo)), at_lo)
+                  for (lo, at_lo), (hi, at_hi) in zip(terms[0::2], terms[1::2])]
+        terms = paired + terms[len(paired) * 2:]
+    return terms[0][0]

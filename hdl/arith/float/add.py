@@ -17,10 +17,11 @@ class FloatAdd(FloatUnit):
     """``a + b`` (or ``a - b`` with ``subtract``) rounded to nearest even.
 
     Single path: the operands are swapped so the larger magnitude comes first, the smaller is
-    aligned to it with two guard bits and a sticky bit, the two are added or subtracted in
-    ``precision + 4`` bits, and :func:`~.round.round_pack` normalises (counting the leading
-    zeros a cancellation leaves) and rounds. A cancellation of more than one bit only happens
-    when the exponents differ by at most one, where no bit was lost, so the sum is exact there.
+    aligned to it with two guard bits and a sticky bit (worked out beside the shift), the two
+    are added or subtracted in ``precision + 4`` bits, and :func:`~.round.round_pack`
+    normalises (counting the leading zeros a cancellation leaves) and rounds. A cancellation
+    of more than one bit only happens when the exponents differ by at most one, where no bit
+    was lost, so the sum is exact there.
 
     Parameters
     ----------
@@ -28,9 +29,10 @@ class FloatAdd(FloatUnit):
         Operand and result format (default ``binary32``).
     subnormals : "ieee" or "ftz"
     stages : int or None
-        Register stages, 0 to 8: the latency in cycles. ``None`` is 6 (over 100 MHz on an
-        ECP5-85 for binary32: registers before the alignment shift, before the add, after it,
-        before the normalising shift, before the rounding increment, and at the output).
+        Register stages, 0 to 8: the latency in cycles. ``None`` is 6 (over 125 MHz on an
+        ECP5-85 for binary32, 130-145 over placer seeds: registers before the alignment shift,
+        before the add, after it, before the normalising shift, before the rounding
+        increment, and at the output); 7 adds one before the final selects (over 140 MHz).
     subtract : bool
         Compute ``a - b`` (``b``'s sign inverted before anything else, NaNs included).
 
@@ -112,9 +114,11 @@ class FloatAdd(FloatUnit):
                  invalid=a.is_snan | b.is_snan | inf_inf)
 
         # Sum layout (p + 4 bits): carry | significand (p) | two guard bits | sticky.
-        most = (1 << len(v.diff)) - 1  # the longest shift: the lost bits still in the vector
-        wide = Cat(C(0, most), C(0, 2), v.small_sig) >> v.diff
-        small = Cat(wide[:most].any(), wide[most:])
+        # The bits shifted out are found beside the shift, not after it: bit i of the smaller
+        # significand falls under the guard bits when the shift is at least i + 3.
+        aligned = cuts.wire("aligned", Cat(C(0, 2), v.small_sig) >> v.diff)
+        lost = Cat(v.small_sig[i] & (v.diff >= i + 3) for i in range(p)).any()
+        small = Cat(lost, aligned)
         big = Cat(C(0, 3), v.big_sig)
         exp = prepare_exponent(cuts, fmt, None, p + 4, denormalise=False, room=v.room)
         v = cuts("add", big=big, small=small, sub=v.sub, exp=exp, sign=v.sign,

@@ -1,180 +1,24 @@
 """Floating-point division ``a / b``: a radix-2 digit recurrence, pipelined or iterative.
 
-The recurrence machinery here (:class:`RecurrenceUnit`, the register planner, the one-adder
-add/subtract and the carry-free zero test) is shared with :mod:`.sqrt`, the other
-digit-recurrence unit.
+The recurrence machinery here (:class:`RecurrenceUnit`, the one-adder add/subtract and the
+carry-free zero test) is shared with :mod:`.sqrt`, the other digit-recurrence unit; the
+registers are placed by the delay model of :mod:`.timing`.
 """
 
 from __future__ import annotations
-
-import math
-from collections.abc import Mapping
 
 from amaranth.hdl import C, Cat, Mux, Signal, Value
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
-from .round import ROUND_BOUNDARIES, FloatUnit, leading_zeros, round_pack, unpack
+from .round import (ROUND_BOUNDARIES, FloatUnit, leading_zeros, prepare_exponent, round_pack,
+                    unpack)
+from .timing import (StagePlans, carry_delay, lut_delay, prepare_delay, round_delays,
+                     shifter_delay, tree_levels)
 
-__all__ = ["FloatDiv", "RecurrenceUnit", "StagePlans", "add_sub", "sum_is_zero",
-           "lut_delay", "carry_delay", "tree_levels", "shifter_delay", "round_delays"]
-
-# ---------------------------------------------------------------------------------------------
-# Delay model for placing registers: ECP5 figures (ns, clock-to-output and routing included)
-# for a LUT level and a carry chain, fitted to nextpnr's critical paths of binary32 units on
-# an LFE5U-85F: a recurrence step ~5 ns whatever its width (routing dominates), two ~10 ns;
-# the rounding increment to the overflow compare ~10 ns; a 32-bit leading-zero count with the
-# compares after it ~13 ns, as are the exponent compare and the denormalising shift after it.
-# Only the relative sizes matter for balancing the stages; the absolute ones set the default
-# stage counts.
-LUT_NS = 1.2
-BUDGET_NS = 9.5  # a 100 MHz clock less a margin for placement
+__all__ = ["FloatDiv", "RecurrenceUnit", "add_sub", "sum_is_zero"]
 
 
-def lut_delay(levels: float) -> float:
-    return LUT_NS * levels
-
-
-def carry_delay(width: int) -> float:
-    """An adder or comparator of ``width`` bits: entry LUT, carry chain, exit routing."""
-    return 2.4 + 0.03 * width
-
-
-def tree_levels(width: int, fan_in: int = 2) -> int:
-    """Levels of a ``fan_in``-input tree over ``width`` bits (a reduction, a priority count)."""
-    return max(1, math.ceil(math.log(max(width, 2), fan_in)))
-
-
-def shifter_delay(width: int) -> float:
-    """A barrel shifter over ``width`` bits (a 4:1 multiplexer takes a LUT and a PFUMX)."""
-    return lut_delay(0.7 * tree_levels(width))
-
-
-def round_delays(fmt: FloatFormat, width: int, denormalise: bool = True,
-                 leading_one: bool = False) -> list[float]:
-    """Logic before each of :data:`ROUND_BOUNDARIES` and ``"out"``, for a ``width``-bit
-    significand (``leading_one``: its top bit is a constant one, no leading zeros to count).
-
-    After the structure of :func:`~.round.round_pack`: the exponent's room above emin, then
-    beside each other the denormalising right shift with its lost bits, and the leading-zero
-    count capped at emin with the biased exponent; the normalising left shift; the rounding.
-    """
-    p, room = fmt.precision, carry_delay(fmt.exp_bits + 3) + lut_delay(2)
-    count = lut_delay(0 if leading_one else tree_levels(width) + 1)
-    shift_left = shifter_delay(width) + count + carry_delay(fmt.exp_bits + 3)
-    if denormalise:
-        right = p + 1
-        shift_right = shifter_delay(width + right) + lut_delay(tree_levels(right, 4))
-    else:
-        shift_right = 0.0
-    return [
-        room + max(shift_left, shift_right),
-        shifter_delay(width),
-        # round-up decision, increment, exponent add, overflow compare
-        lut_delay(1) + carry_delay(p + 1) + 2 * carry_delay(fmt.exp_bits + 2),
-        # special-result selects (before "out")
-        lut_delay(2),
-    ]
-
-
-class StagePlans(Mapping):
-    """Register placements for every stage count of a straight-line datapath.
-
-    ``segments`` lists ``(boundary, delay)`` in datapath order, ``delay`` being the logic
-    between the previous boundary and this one. The last boundary (``"out"``) and those in
-    ``forced`` always get a register, except in the all-combinational plan of zero stages
-    (allowed when nothing else is forced). For a stage count, the longest stage (by the delay
-    model) is made as short as possible: registers go as late as that bound allows, and any
-    left over split the stages where that shortens them most. ``offset`` is added to the
-    register count and boundaries in ``hidden`` are left out of the plans: an iterative core
-    is a forced boundary whose registers the unit makes itself, ``offset + 1`` cycles of
-    latency.
-
-    A mapping ``stages -> tuple of boundaries`` (computed on demand), as
-    :class:`~.round.FloatUnit` expects of ``PLANS``.
-    """
-
-    def __init__(self, segments, forced=(), offset=0, hidden=()):
-        self._names = [name for name, _ in segments]
-        self._hidden = set(hidden)
-        self._delays = [float(d) for _, d in segments]
-        self._forced = set(forced) | {self._names[-1]}
-        self._offset = offset
-        self._prefix = [0.0]
-        for d in self._delays:
-            self._prefix.append(self._prefix[-1] + d)
-        n = len(self._names)
-        # Without a forced register inside, zero stages (all combinational) is allowed too.
-        self._lo = 0 if len(self._forced) == 1 and not offset else len(self._forced) + offset
-        self._hi = n + offset
-        self._bounds = sorted({self._prefix[j + 1] - self._prefix[i]
-                               for i in range(n + 1) for j in range(i, n)})
-
-    def __len__(self):
-        return self._hi - self._lo + 1
-
-    def __iter__(self):
-        return iter(range(self._lo, self._hi + 1))
-
-    def __contains__(self, stages):
-        return isinstance(stages, int) and not isinstance(stages, bool) \
-            and self._lo <= stages <= self._hi
-
-    def _cost(self, i, j):
-        """Delay of the stage between chosen boundaries ``i`` and ``j`` (``i = -1``: input)."""
-        return self._prefix[j + 1] - self._prefix[i + 1]
-
-    def _latest(self, bound):
-        """Boundary indices chosen as late as ``bound`` allows (a longer single segment gets a
-        stage of its own)."""
-        chosen, last = [], -1
-        for j, name in enumerate(self._names):
-            if j + 1 < len(self._names) and name not in self._forced \
-                    and self._cost(last, j + 1) <= bound:
-                continue
-            chosen.append(j)
-            last = j
-        return chosen
-
-    def __getitem__(self, stages):
-        if stages not in self:
-            raise KeyError(stages)
-        count = stages - self._offset
-        if count == 0:
-            return ()
-        # The smallest bound met with at most ``count`` registers, by bisection.
-        lo, hi = 0, len(self._bounds) - 1
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if len(self._latest(self._bounds[mid])) <= count:
-                hi = mid
-            else:
-                lo = mid + 1
-        chosen = self._latest(self._bounds[lo])
-        while len(chosen) < count:
-            chosen = self._split_longest(chosen)
-        return tuple(self._names[j] for j in chosen if self._names[j] not in self._hidden)
-
-    def _split_longest(self, chosen):
-        best = None
-        for k, j in enumerate(chosen):
-            i = chosen[k - 1] if k else -1
-            for c in range(i + 1, j):
-                key = (max(self._cost(i, c), self._cost(c, j)) - self._cost(i, j), c)
-                if best is None or key < best[0]:
-                    best = (key, c)
-        return sorted(chosen + [best[1]])
-
-    def default(self, budget=BUDGET_NS):
-        """The fewest stages that meet ``budget``, or the delay of a forced boundary's own
-        segment if longer (an iterative core's cycle sets the clock: the logic around it
-        need not be faster). A single segment over the bound gets a stage of its own."""
-        index = {name: j for j, name in enumerate(self._names)}
-        bound = max([budget] + [self._cost(index[n] - 1, index[n]) for n in self._forced])
-        return len(self._latest(bound)) + self._offset
-
-
-# ---------------------------------------------------------------------------------------------
 def add_sub(x, y, sub):
     """``x - y`` if ``sub`` else ``x + y`` in one adder (``y`` inverted, carry in ``sub``).
 
@@ -204,12 +48,16 @@ class RecurrenceUnit(FloatUnit):
     The datapath: input boundary ``"in"``; operand decode and leading-zero count
     (``"unpack"``); the normalising shift (``"normalise"``); the recurrence's first step
     (``"<op>.0"``); ``iterations`` identical steps, one result bit each; then the remainder's
-    sticky bit and the shared rounding stage (``"round.*"``, ``"out"``).
+    sticky bit and the shared rounding stage (``"round.*"``, ``"out"``). The result's
+    exponent (``exp`` in the state) is final after the first step, so its side of the rounding
+    stage (:func:`~.round.prepare_exponent`) is computed during the recurrence and registered:
+    the stages after the recurrence start from the denormalising shift.
 
     ``cycles_per_op == 1``: the steps are unrolled, each followed by a boundary
-    ``"<op>.<i>"``. ``stages`` (0 to the number of boundaries) says how many registers, and
-    :class:`StagePlans` where: the longest stage by the delay model is made as short as it can
-    be. One operation per clock.
+    ``"<op>.<i>"``; the exponent is prepared beside the last two. ``stages`` (0 to the number
+    of boundaries) says how many registers, and :class:`~.timing.StagePlans` where: the
+    longest stage by the delay model of :mod:`.timing` is made as short as it can be. One
+    operation per clock.
 
     ``cycles_per_op == K > 1``: one block of ``ceil(iterations / K)`` steps, its state in
     registers (``core_*``), runs K cycles per operation: the first cycle takes the operation
@@ -218,10 +66,12 @@ class RecurrenceUnit(FloatUnit):
     accepted operation is K or more cycles back (it never depends on ``i_valid``); the stages
     before the core never stall, as operations enter them K cycles apart. ``stages`` is the
     whole latency, the K core cycles plus the registers before and after the core (at least
-    ``"out"``): from ``K + 1`` to ``K + 8``. Without a ``stages``, the registers around the
-    core are as few as keep their logic no slower than the block of steps (or 100 MHz): from
-    ``K + 2`` for a long block to ``K + 7`` for one step a cycle. The clock is that of the
-    block: about 5 ns a step on an ECP5.
+    ``"out"``): from ``K + 1`` to ``K + 8``. The exponent stays in its core register for the K
+    cycles, so the prepared one is registered beside the core without adding a cycle. Without
+    a ``stages``, the registers around the core are as few as keep their logic no slower than
+    the block of steps (or 100 MHz): from ``K + 2`` for a long block to ``K + 6`` for one step
+    a cycle (``K + 7`` in binary64 division). The clock is that of the block: about 5 ns a
+    step on an ECP5, so 100 MHz takes at most two steps a cycle.
 
     A subclass sets ``OP`` and writes :meth:`iterations`, :meth:`operands` (decode, up to
     ``"normalise"``), :meth:`first` (the state after the first step, sized for the core
@@ -230,6 +80,9 @@ class RecurrenceUnit(FloatUnit):
     """
 
     OP = ""
+    #: State fields the steps shift left, dropping the top bit: the iterative core feeds them
+    #: back unnamed, as no step reads the top bit of the value fed back.
+    SHIFTED: tuple[str, ...] = ()
 
     def __init__(self, fmt, subnormals, stages, cycles_per_op, ports):
         fmt = FloatFormat.parse(fmt) if isinstance(fmt, str) else fmt
@@ -265,14 +118,21 @@ class RecurrenceUnit(FloatUnit):
     def _plans(self, fmt, ieee):
         op = self.OP
         pre = [("in", 0.0)] + self.pre_delays(fmt, ieee)
-        # (The sticky bit's zero test runs beside the rounding stage's exponent logic.)
-        post = list(zip(ROUND_BOUNDARIES + ("out",),
-                        round_delays(fmt, self._steps + 1, self.denormalise(fmt, ieee), True)))
+        shift, *rest = round_delays(fmt, self._steps + 1, self.denormalise(fmt, ieee),
+                                    leading_one=True, prepared=True)
+        # The remainder's zero test runs beside the denormalising shift; its bit joins the lost
+        # ones at the end.
+        post = list(zip(ROUND_BOUNDARIES + ("out",), [max(shift, self.sticky_delay(fmt))] + rest))
         if self._cycles == 1:
-            body = [(f"{op}.{i}", self.step_delay(fmt, i)) for i in range(1, self._steps + 1)]
-            return StagePlans(pre + body + post)
-        # The block of full-width steps after its input multiplexer.
-        core = self._per_cycle * self.step_delay(fmt, self._steps) + lut_delay(1)
+            body = [self.step_delay(fmt, i) for i in range(1, self._steps + 1)]
+            # The exponent is prepared beside the last two steps (see datapath).
+            body[-2] = max(body[-2], carry_delay(fmt.exp_bits + 3))
+            body[-1] = max(body[-1], prepare_delay(fmt, from_room=True))
+            return StagePlans(pre + [(f"{op}.{i + 1}", d) for i, d in enumerate(body)] + post)
+        # The block of full-width steps after its input multiplexer (and beside it the
+        # prepared exponent's register).
+        core = max(self._per_cycle * self.step_delay(fmt, self._steps) + lut_delay(1),
+                   prepare_delay(fmt))
         return StagePlans(pre + [("core", core)] + post, forced=("core",),
                           offset=self._cycles - 1, hidden=("core",))
 
@@ -285,15 +145,30 @@ class RecurrenceUnit(FloatUnit):
                           if name.startswith("i_") and name not in ("i_valid", "i_ready")})
         state = self.first(cuts, self.operands(cuts, v))
         state = vars(cuts(f"{self.OP}.0", **state))
+        width, denormalise = self._steps + 1, self.denormalise(fmt, self.subnormals == "ieee")
         if self._cycles == 1:
+            # The exponent, set by the first step, is prepared for the rounding stage
+            # (prepare_exponent) beside the last two steps, an add and then the compares: the
+            # stages after the recurrence start from the denormalising shift.
             for i in range(1, self._steps + 1):
-                state = vars(cuts(f"{self.OP}.{i}", **self.step(state, fixed=False)))
+                state = self.step(state, fixed=False)
+                if i == self._steps - 1:
+                    state["exp"] = cuts.wire("room", state["exp"] - fmt.emin)
+                elif i == self._steps:
+                    state["exp"] = prepare_exponent(cuts, fmt, None, width, denormalise,
+                                                    room=state["exp"])
+                state = vars(cuts(f"{self.OP}.{i}", **state))
         else:
             state, cuts.valid = self._core(m, state, cuts.valid)
+            # The exponent is held in the core for all its cycles, so the prepared one,
+            # registered beside it, is ready by the last: no latency added.
+            prepared = prepare_exponent(cuts, fmt, state["exp"], width, denormalise)
+            held = Signal(prepared.shape(), name="core_exponent", reset_less=True)
+            m.d.sync += held.eq(prepared)
+            state = {**state, "exp": held}
         # (On wires: the rounding stage reads them many times over.)
         raw = {k: cuts.wire(f"{self.OP}_{k}", v) for k, v in self.finish(state).items()}
-        return round_pack(cuts, fmt, subnormals=self.subnormals,
-                          denormalise=self.denormalise(fmt, self.subnormals == "ieee"), **raw)
+        return round_pack(cuts, fmt, subnormals=self.subnormals, denormalise=denormalise, **raw)
 
     def _accept(self, m):
         """``i_ready`` and the accepted-operation strobe: one operation per K cycles."""
@@ -318,6 +193,9 @@ class RecurrenceUnit(FloatUnit):
                 for k, v in state.items()}
         cur = {}
         for k in state:
+            if k in self.SHIFTED:
+                cur[k] = Mux(start, state[k], regs[k])
+                continue
             cur[k] = Signal.like(regs[k], name=f"core_{k}_in")
             m.d.comb += cur[k].eq(Mux(start, state[k], regs[k]))
         for i in range(self._per_cycle):
@@ -346,6 +224,11 @@ class RecurrenceUnit(FloatUnit):
                  + carry_delay(fmt.exp_bits + 2)),
                 (f"{self.OP}.0", self.first_delay(fmt))]
 
+    def sticky_delay(self, fmt):
+        """The remainder's zero test after the last step: a LUT a bit, their AND, the select by
+        the remainder's sign."""
+        return lut_delay(2 + tree_levels(self._steps + 1, 4))
+
     def denormalise(self, fmt, ieee) -> bool:
         """Whether a result can be below ``2**emin`` (the rounding stage then shifts right)."""
         return True
@@ -356,14 +239,15 @@ class FloatDiv(RecurrenceUnit):
 
     Subnormal operands are normalised first (leading-zero count and shift), so both
     significands ``ma, mb`` are in ``[2**(p-1), 2**p)`` (``p = fmt.precision``). The first
-    step is ``r = ma - mb``; each of the ``p + 2`` further steps is one adder,
-    ``r = 2r - mb`` after a nonnegative remainder and ``2r + mb`` after a negative one, and
-    gives the quotient bit ``r >= 0`` (the bits of restoring division, without its
-    multiplexer after the adder). The ``p + 3`` quotient bits hold the significand, a round
-    bit and one more; the remainder (``r``, or ``r + mb`` when negative) is zero or not, the
-    sticky bit, tested without a carry chain. The quotient, normalised by its first bit, goes
-    through the shared rounding stage (:func:`~.round.round_pack`) with a constant leading
-    one, so subnormal, overflowing and exact quotients all round as IEEE 754 says.
+    step gives the quotient's leading one: ``r = ma - mb``, or ``2 ma - mb`` a place lower
+    when ``ma < mb``. Each of the ``p + 2`` further steps is one adder, ``r = 2r - mb``
+    after a nonnegative remainder and ``2r + mb`` after a negative one, and gives the
+    quotient bit ``r >= 0`` (the bits of restoring division, without its multiplexer after
+    the adder). The ``p + 3`` quotient bits hold the significand, a round bit and one more;
+    the remainder (``r``, or ``r + mb`` when negative) is zero or not, the sticky bit, tested
+    without a carry chain. The quotient goes through the shared rounding stage
+    (:func:`~.round.round_pack`) with a constant leading one, so subnormal, overflowing and
+    exact quotients all round as IEEE 754 says.
 
     Special cases: a NaN operand gives the canonical NaN (NV if signalling); ``0/0`` and
     ``inf/inf`` the canonical NaN with NV; finite nonzero ``/ 0`` an infinity with DZ;
@@ -378,10 +262,11 @@ class FloatDiv(RecurrenceUnit):
     stages : int or None
         Register stages, the latency in cycles. Pipelined: 0 to ``p + 10`` (34 for
         binary32), registers placed to balance the stages. ``None`` is the fewest stages whose
-        logic fits 100 MHz on an ECP5 by the delay model: a register after every recurrence
-        step (33 for binary32, 19 for binary16). Iterative: ``cycles_per_op + 1`` to
-        ``cycles_per_op + 8``; ``None`` from ``cycles_per_op + 2`` (binary32, K <= 6) to
-        ``+ 7`` (K = ``p + 2``). See :class:`RecurrenceUnit`.
+        logic fits 100 MHz on an ECP5 by the delay model of :mod:`.timing`: a register after
+        every recurrence step (32 for binary32, 17 for binary16, 62 for binary64; one or two
+        fewer with ``ftz``). Iterative: ``cycles_per_op + 1`` to ``cycles_per_op + 8``;
+        ``None`` from ``cycles_per_op + 2`` (binary32, K <= 8) to ``+ 6`` (K = ``p + 2``).
+        See :class:`RecurrenceUnit`.
     cycles_per_op : int
         1 for one operation per clock (the recurrence unrolled), or K from 2 to ``p + 2``: one
         block of ``ceil((p + 2) / K)`` steps reused for K cycles, one operation accepted every
@@ -406,11 +291,15 @@ class FloatDiv(RecurrenceUnit):
         On a bad format, subnormal mode, stage count or ``cycles_per_op``.
 
     Latency ``stages`` cycles from the accepting cycle to ``o_valid``; initiation interval
-    ``cycles_per_op``. On an LFE5U-85F a recurrence step takes about 5 ns, so the default
-    keeps the recurrence above 100 MHz; the rounding stage sets the unit's Fmax.
+    ``cycles_per_op``. On an LFE5U-85F (nextpnr, median of three placer seeds) the default
+    binary32 pipeline runs at about 125 MHz, binary16 at 140 and binary64 at 99; the
+    rounding stage's denormalising shift and its lost bits set the Fmax, the recurrence
+    steps (about 5 ns each) are faster. Iterative, the block of steps sets the clock: about
+    100 MHz with two steps a cycle (binary32 K = 13), 128 MHz with one (K = 26).
     """
 
     OP = "div"
+    SHIFTED = ("q",)
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None, cycles_per_op: int = 1):
@@ -424,7 +313,8 @@ class FloatDiv(RecurrenceUnit):
         return fmt.precision + 2
 
     def first_delay(self, fmt):
-        return carry_delay(fmt.precision + 1) + lut_delay(1)  # and the exponent select
+        # The two subtracts side by side, then the selects by the first one's sign.
+        return carry_delay(fmt.precision + 1) + lut_delay(1)
 
     def step_delay(self, fmt, i):
         # The remainder's sign fans out to every bit's add/subtract select.
@@ -436,7 +326,9 @@ class FloatDiv(RecurrenceUnit):
         b = unpack(fmt, v.i_b, self.subnormals)
         both_zero, both_inf = a.is_zero & b.is_zero, a.is_inf & b.is_inf
         is_nan = a.is_nan | b.is_nan | both_zero | both_inf
-        v = cuts("unpack", a_sig=a.sig, b_sig=b.sig, exp=a.exp - b.exp,
+        # (The biases cancel: ea - eb is the difference of the exponent fields.)
+        exp = cuts.wire("div_exp_diff", a.biased - b.biased)
+        v = cuts("unpack", a_sig=a.sig, b_sig=b.sig, exp=exp, exp_less=exp - 1,
                  a_zeros=leading_zeros(cuts, a.sig, "a_lz") if ieee else C(0, 1),
                  b_zeros=leading_zeros(cuts, b.sig, "b_lz") if ieee else C(0, 1),
                  sign=a.sign ^ b.sign, is_nan=is_nan,
@@ -446,18 +338,22 @@ class FloatDiv(RecurrenceUnit):
         p = fmt.precision
         specials = {k: getattr(v, k) for k in ("sign", "is_nan", "is_inf", "is_zero", "invalid",
                                                   "divbyzero")}
-        exp = v.exp - v.a_zeros + v.b_zeros
+        # Both candidate exponents (see first) side by side, each a single add after the
+        # leading-zero counts' difference.
+        zeros = cuts.wire("div_zeros", v.b_zeros - v.a_zeros)
         return cuts("normalise", ma=(v.a_sig << v.a_zeros)[:p], mb=(v.b_sig << v.b_zeros)[:p],
-                    exp=exp, exp_less=exp - 1, **specials)
+                    exp=v.exp + zeros, exp_less=v.exp_less + zeros, **specials)
 
     def first(self, cuts, v):
         p = self.fmt.precision
-        r = (v.ma - v.mb)[:p + 1].as_signed()  # in (-mb, mb): p + 1 bits
-        # The iterative core shifts the later bits in: its quotient register is full width.
-        q = ~r[-1] if self._cycles == 1 else Cat(~r[-1], C(0, self._steps))
-        # The first bit is the quotient's integer bit: with ma < mb it is zero, and the
-        # quotient will be shifted up by one (see finish), which the exponent takes now.
-        return dict(r=r, q=q, d=v.mb, exp=Mux(r[-1], v.exp_less, v.exp), sign=v.sign,
+        # The quotient's leading one: ma / mb is in [1, 2), or 2 ma / mb is, a place lower,
+        # when ma < mb (which the exponent takes now). Either way r is in [0, mb): p + 1 bits.
+        less = cuts.wire("div_less", (v.ma - v.mb)[p])
+        r = Mux(less, Cat(C(0, 1), v.ma) - v.mb, v.ma - v.mb)[:p + 1].as_signed()
+        # The quotient bits after the leading one, none yet. (The iterative core shifts them
+        # in: its quotient register is full width.)
+        q = C(0, 0 if self._cycles == 1 else self._steps)
+        return dict(r=r, q=q, d=v.mb, exp=Mux(less, v.exp_less, v.exp), sign=v.sign,
                     is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero, invalid=v.invalid,
                     divbyzero=v.divbyzero)
 
@@ -472,13 +368,9 @@ class FloatDiv(RecurrenceUnit):
         r, d, p = s["r"], s["d"], self.fmt.precision
         # The remainder is r, or r + mb (in [0, mb), so p bits) when r is negative.
         sticky = Mux(r[-1], ~sum_is_zero(r, d, p), r.any())
-        # The quotient ma * 2**steps / mb is in (2**(steps-1), 2**(steps+1)); normalised here,
-        # where its top bit is known from the first step, so that the rounding stage gets a
-        # constant leading one and its leading-zero count folds away in synthesis. (The zero
-        # shifted in at the bottom has the sticky bit below it, as the rounding stage allows:
-        # there are three bits under the rounding point.)
-        q = s["q"]
-        sig = Cat(Mux(q[-1], q[:-1], Cat(C(0, 1), q[:-2])), C(1, 1))
+        # The quotient's leading one is a constant for the rounding stage: its leading-zero
+        # count and left shift fold away in synthesis.
+        sig = Cat(s["q"], C(1, 1))
         return dict(sign=s["sign"], exp=s["exp"], sig=sig, sticky=sticky,
                     is_nan=s["is_nan"], is_inf=s["is_inf"], is_zero=s["is_zero"],
                     invalid=s["invalid"], divbyzero=s["divbyzero"])

@@ -7,7 +7,8 @@ from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
 from .mul import partial_products, sum_partial_products
-from .round import ROUND_BOUNDARIES, FloatUnit, prepare_exponent, round_pack, unpack
+from .round import (ROUND_BOUNDARIES, ROUND_COUNT, FloatUnit, leading_zeros, prepare_exponent,
+                    round_pack, unpack)
 
 __all__ = ["FloatFMA"]
 
@@ -41,11 +42,13 @@ class FloatFMA(FloatUnit):
         Operand and result format (default ``binary32``).
     subnormals : "ieee" or "ftz"
     stages : int or None
-        Register stages, 0 to 9: the latency in cycles. ``None`` is 7 (registers before and
-        after the multipliers, which run beside the addend's alignment, after the sum of their
-        partial products, after the wide add, before the normalising shift, before the rounding
-        increment, and at the output). That is 78-88 MHz on an ECP5-85 for binary32, short of
-        100: the leading-zero count over the ``F``-bit sum (104 bits) takes a whole cycle.
+        Register stages, 0 to 10: the latency in cycles. ``None`` is 9 (registers before and
+        after the multipliers, which run beside the addend's alignment; after the sum of their
+        partial products, beside which the addend is inverted for a difference; after the wide
+        adders, beside which the exponent side of the rounding is prepared; halfway through
+        the leading-zero count over the ``F``-bit sum (104 bits); before the normalising
+        shift, the rounding increment and the final select; and at the output). That is
+        119-122 MHz on an ECP5-85 for binary32 (nextpnr seeds 1 to 3 at 125 MHz).
 
     Members
     -------
@@ -75,9 +78,10 @@ class FloatFMA(FloatUnit):
         6: ("mul", "mul.sum", "add", "norm", _R[1], "out"),
         7: ("mul", "mul.sum", "add", "norm", _R[0], _R[1], "out"),
         8: ("mul", "mul.sum", "add", "norm", _R[0], _R[1], _R[2], "out"),
-        9: ("in", "mul", "mul.sum", "add", "norm", _R[0], _R[1], _R[2], "out"),
+        9: ("mul", "mul.sum", "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
+        10: ("in", "mul", "mul.sum", "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
     }
-    DEFAULT_STAGES = 7
+    DEFAULT_STAGES = 9
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
@@ -110,7 +114,11 @@ class FloatFMA(FloatUnit):
         # those counting to frame - 2 becomes the largest shift they count to.
         bits = (frame - 2).bit_length()
         shift = Mux(at_top, 0, Mux(shift[bits:].any(), (1 << bits) - 1, shift[:bits]))
+        # The addend's bits shifted out of the frame are nonzero when its lowest one is among
+        # them: the sticky bit is a compare with its trailing zeros, beside the shifter.
+        tail = leading_zeros(cuts, cuts.wire("sig_c_reversed", c.sig[::-1]), "tz")
         v = cuts("mul", sig_a=a.sig, sig_b=b.sig, sig_c=c.sig, shift=shift,
+                 tail=tail, c_nonzero=~c.is_zero,
                  # Room above emin of the frame's top bit: it weighs 2**(ec + 1) anchored to
                  # the addend, 2**(ea + eb + 1 + p + 4) to the product.
                  room=Mux(at_top, c.biased, prod_biased + offset),
@@ -120,29 +128,42 @@ class FloatFMA(FloatUnit):
                  inf_sign=Mux(prod_inf, prod_sign, c.sign),
                  invalid=a.is_snan | b.is_snan | c.is_snan | zero_inf | inf_inf)
 
-        # Beside the multipliers: the exponent side of the rounding, the addend's alignment.
-        exp = prepare_exponent(cuts, fmt, None, frame, room=v.room)
-        most = (1 << len(v.shift)) - 1  # the longest shift: the lost bits still in the vector
-        wide = Cat(C(0, most), C(0, frame - 2 - p), v.sig_c) >> v.shift
-        addend = Cat(wide[:most].any(), wide[most:], C(0, 1))
-        v = cuts("mul.sum", **partial_products(v.sig_a, v.sig_b), addend=addend, exp=exp,
-                 prod_sign=v.prod_sign, c_sign=v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf,
-                 inf_sign=v.inf_sign, invalid=v.invalid)
+        # Beside the multipliers: the addend's alignment, from the top of the frame (bits
+        # frame - 2 down to 1) with the sticky bit under it.
+        aligned = Cat(C(0, frame - 2 - p), v.sig_c) >> v.shift
+        sticky = v.c_nonzero & (v.tail + (frame - 2 - p) < v.shift)
+        addend = Cat(sticky, aligned, C(0, 1))
+        v = cuts("mul.sum", **partial_products(v.sig_a, v.sig_b), addend=addend, room=v.room,
+                 sub=v.prod_sign ^ v.c_sign, prod_sign=v.prod_sign, c_sign=v.c_sign,
+                 is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign, invalid=v.invalid)
 
-        product = Cat(C(0, low), sum_partial_products(v, 2 * p), C(0, p + 4))
-        v = cuts("add", product=product, addend=v.addend, exp=v.exp, prod_sign=v.prod_sign,
-                 c_sign=v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign,
-                 invalid=v.invalid)
+        # Beside the sum of the partial products: the addend inverted for a difference; the
+        # carry out of its bits under the product's, and its bits above the product's plus
+        # one. The wide adders below then start from registers and carry over the product's
+        # bits only.
+        addend = cuts.wire("addend", Mux(v.sub, ~v.addend, v.addend))
+        top = low + 2 * p  # the bits above the product's
+        v = cuts("add", product=sum_partial_products(v, 2 * p), addend=addend,
+                 carry=v.sub & addend[:low].all(), above=addend[top:] + 1,
+                 room=v.room, sub=v.sub, prod_sign=v.prod_sign, c_sign=v.c_sign,
+                 is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign, invalid=v.invalid)
 
-        # One adder for the sum or the difference (the carry in under the lowest bit), a
-        # second for the difference the other way round, picked when the first is negative.
-        sub = v.prod_sign ^ v.c_sign
-        addend = Mux(sub, ~v.addend, v.addend)
-        either = cuts.wire("either", (Cat(sub, v.product) + Cat(sub, addend))[1:])
-        negative = cuts.wire("negative", sub & ~either[frame])  # no carry: product < addend
-        total = Mux(negative, v.addend - v.product, either)
+        # Two adders from the same operands: the sum or the difference (the carry in under the
+        # lowest bit) and, for a difference that comes out negative (no carry out: product <
+        # addend), the difference minus one, whose complement is the difference the other way
+        # round. Under the product's bits the first is the addend plus the carry in, the
+        # second the addend; above them either is the addend, plus one after a carry.
+        # Beside them: the exponent side of the rounding.
+        def place(carry_in):
+            middle = (Cat(carry_in, v.product) + Cat(carry_in, v.addend[low:top]))[1:]
+            return Cat(middle[:-1], Mux(middle[-1], v.above, v.addend[top:]))
+
+        either = cuts.wire("either", Cat((v.addend[:low] + v.sub)[:low], place(v.carry)))
+        negative = cuts.wire("negative", v.sub & ~either[frame])
+        total = Mux(negative, ~Cat(v.addend[:low], place(0))[:frame], either[:frame])
         sign = Mux(v.is_inf, v.inf_sign, Mux(negative, v.c_sign, v.prod_sign))
-        v = cuts("norm", total=total[:frame], exp=v.exp, sign=sign,
+        exp = prepare_exponent(cuts, fmt, None, frame, room=v.room, marker=True)
+        v = cuts("norm", total=total, exp=exp, sign=sign,
                  zero_sign=v.prod_sign & v.c_sign, is_nan=v.is_nan, is_inf=v.is_inf,
                  invalid=v.invalid)
 

@@ -2,51 +2,145 @@
 
 from __future__ import annotations
 
+from amaranth.hdl import C, Cat, Mux, Signal, Value
 from amaranth.lib.wiring import In, Out
 
+from ..multiply import sum_rows
 from .format import FloatFormat
-from .round import ROUND_BOUNDARIES, FloatUnit, prepare_exponent, round_pack, unpack
+from .round import (ROUND_BOUNDARIES, FloatUnit, leading_zeros, prepare_exponent, round_pack,
+                    unpack)
 
-__all__ = ["FloatMul", "partial_products", "sum_partial_products"]
+__all__ = ["FloatMul", "product_rows", "partial_products", "sum_partial_products"]
 
 _R = ROUND_BOUNDARIES  # round.shift, round.round, round.select
 
-#: Width of the slices of ``b`` the significand product is made of (an unsigned operand of an
-#: 18-bit signed multiplier port).
-PRODUCT_SLICE = 17
+#: The largest unsigned product one multiplier block takes whole on both families we build
+#: for: ECP5's MULT18X18D multiplies 18 x 18 bits, a 7-series DSP48E1 25 x 18 signed (24 x 17
+#: unsigned). ``a`` is cut in slices of the first width, ``b`` of the second.
+DSP_SLICES = (18, 17)
+
+#: The top slice of an operand (the remainder of its cut, or the whole operand) is multiplied
+#: in LUTs, row by row, when it has at most this many bits: both top slices when their rows
+#: come to no more, otherwise the narrower. Binary32 (24 = 18 + 6 and 17 + 7) takes two
+#: DSP blocks and six rows; binary64 (53 = 18 + 18 + 17 and 3 * 17 + 2) nine and two rows.
+LUT_ROWS = 8
+
+#: LUT rows summed into one partial product: two adders deep, no slower than a DSP block.
+ROW_GROUP = 4
 
 
-def partial_products(a, b) -> dict:
-    """``a`` times 17-bit slices of ``b``, by name (``pp0``, ``pp17``...): each fits one
-    DSP48E1 (25 x 18 signed) when ``a`` has at most 24 bits, so a binary32 product takes two.
-    A register boundary after them keeps their adds (:func:`sum_partial_products`) apart."""
-    return {f"pp{i}": a * b[i:i + PRODUCT_SLICE] for i in range(0, len(b), PRODUCT_SLICE)}
+def _split(width_a: int, width_b: int):
+    """``(end_a, end_b, rows_a, rows_b)``: ``a``'s bits below ``end_a`` times ``b``'s below
+    ``end_b`` are multiplied in blocks; ``a``'s bits in ``rows_a`` select rows of all of ``b``,
+    ``b``'s in ``rows_b`` rows of ``a``'s block bits."""
+    size_a, size_b = DSP_SLICES
+    cut_a = (width_a - 1) // size_a * size_a  # where the top slices begin
+    cut_b = (width_b - 1) // size_b * size_b
+    # The top slices that go to LUTs: the narrower first (a's on a tie), both if they fit.
+    fits = sorted((rows, op) for rows, op in ((width_a - cut_a, "a"), (width_b - cut_b, "b"))
+                  if rows <= LUT_ROWS)
+    lut = {op for k, (_, op) in enumerate(fits) if sum(r for r, _ in fits[:k + 1]) <= LUT_ROWS}
+    end_a = cut_a if "a" in lut else width_a
+    end_b = cut_b if "b" in lut else width_b
+    # (b's rows take a's block bits only: none when a is all rows.)
+    return end_a, end_b, range(end_a, width_a), range(end_b, width_b if end_a else end_b)
+
+
+def product_rows(a, b) -> dict:
+    """The LUT rows of :func:`partial_products`, selected, by name. Registered before the
+    multipliers (with ``a`` and ``b``), they take the selects off the rows' adder path."""
+    a, b = Value.cast(a), Value.cast(b)
+    end_a, _, rows_a, rows_b = _split(len(a), len(b))
+    return {**{f"row_a{i}": Mux(a[i], b, 0) for i in rows_a},
+            **{f"row_b{j}": Mux(b[j], a[:end_a], 0) for j in rows_b}}
+
+
+def partial_products(a, b, rows=None) -> dict:
+    """Partial products of ``a * b`` (unsigned) by name, ``pp<k>_<weight>``.
+
+    Every ``*`` product here fits one multiplier block of either family (:data:`DSP_SLICES`),
+    so none is split by synthesis into blocks and an adder; the LUT rows (:data:`LUT_ROWS`)
+    are summed in groups of :data:`ROW_GROUP`, from ``rows`` (a namespace holding
+    :func:`product_rows`) if given, else selected here. Put a register boundary after them:
+    the block outputs go straight into it, and their adds (:func:`sum_partial_products`)
+    come after.
+    """
+    a, b = Value.cast(a), Value.cast(b)
+    size_a, size_b = DSP_SLICES
+    end_a, end_b, rows_a, rows_b = _split(len(a), len(b))
+    rows = product_rows(a, b) if rows is None else vars(rows)
+    terms = [(a[i:min(i + size_a, end_a)] * b[j:min(j + size_b, end_b)], i + j)
+             for i in range(0, end_a, size_a) for j in range(0, end_b, size_b)]
+    for name, span in (("row_a", rows_a), ("row_b", rows_b)):
+        for g in range(0, len(span), ROW_GROUP):
+            group = [rows[f"{name}{k}"] for k in span[g:g + ROW_GROUP]]
+            # (as wide as the product it is, not as the adders' carries)
+            terms.append((sum_rows(group)[:len(group[0]) + len(group)], span[g]))
+    return {f"pp{k}_{weight}": value for k, (value, weight) in enumerate(terms)}
+
+
+def _add_above(lo, hi, shift: int):
+    """``lo + (hi << shift)``, the adder only where the two overlap."""
+    if shift >= len(lo):
+        return Cat(lo, C(0, shift - len(lo)), hi)
+    return Cat(lo[:shift], lo[shift:] + hi)
 
 
 def sum_partial_products(v, width: int):
-    """The product from the partial products in namespace ``v``, ``width`` bits."""
-    return sum(value << int(name[2:]) for name, value in vars(v).items()
-               if name.startswith("pp"))[:width]
+    """The product from the partial products in namespace ``v``, ``width`` bits.
+
+    Terms that do not overlap are concatenated into lanes (binary64's nine blocks and two
+    rows make six), and the lanes added pairwise in order of weight, a balanced tree; below
+    the higher term of a pair the lower one's bits pass through without an adder.
+    """
+    terms = sorted(((Value.cast(value), int(name.rpartition("_")[2]))
+                    for name, value in vars(v).items() if name.startswith("pp")),
+                   key=lambda t: t[1])
+    lanes = []  # [value, weight], each filled from its lowest term up
+    for value, at in terms:
+        lane = next((lane for lane in lanes if lane[1] + len(lane[0]) <= at), None)
+        if lane is None:
+            lanes.append([value, at])
+        else:
+            lane[0] = Cat(lane[0], C(0, at - lane[1] - len(lane[0])), value)
+    terms = [tuple(lane) for lane in lanes]
+    while len(terms) > 1:
+        paired = [(_add_above(lo, hi, at_hi - at_lo), at_lo)
+                  for (lo, at_lo), (hi, at_hi) in zip(terms[0::2], terms[1::2])]
+        terms = paired + terms[len(paired) * 2:]
+    value, at = terms[0]
+    return Cat(C(0, at), value)[:width]
 
 
 class FloatMul(FloatUnit):
     """``a * b`` rounded to nearest even.
 
-    The full ``2 * precision``-bit product of the significands (hidden bits included) goes
-    to :func:`~.round.round_pack` unshortened: a subnormal operand leaves leading zeros that
-    the rounder counts and shifts out, and a product below ``2**emin`` is shifted right there.
-    The product is the sum of ``a``'s significand times 17-bit slices of ``b``'s (two
-    DSP48E1 for binary32), with a register boundary between the multipliers and the sum.
+    A subnormal operand's significand is normalised first (its leading zeros counted, then
+    shifted out, the exponent lowered to match), so the product of the two significands has
+    its leading one in one of its top two bits; the top bit picks the alignment and one of
+    two exponents prepared beforehand. The ``precision + 1`` bits under the leading one and a
+    sticky bit for the rest go to :func:`~.round.round_pack` under a constant leading one, so
+    the rounder builds no leading-zero count and no left shift: only the right shift of a
+    product below ``2**emin``. A zero operand gives a special zero.
+
+    The product is the sum of :func:`partial_products`: blocks of at most 18 x 17 bits, which
+    one MULT18X18D or DSP48E1 takes whole, and a few LUT rows (binary32: two blocks and six
+    rows; binary16: one block; binary64: nine blocks and two rows). The rows are selected
+    beside the operands' normalising shift and registered with the operands; the block
+    outputs go straight into the register after the multipliers, and the sum comes after.
 
     Parameters
     ----------
     fmt : FloatFormat or str
         Operand and result format (default ``binary32``).
     subnormals : "ieee" or "ftz"
+        With ``ftz`` there are no subnormal operands to normalise (the registers at that
+        boundary stay, the count and the shifters go).
     stages : int or None
-        Register stages, 0 to 8: the latency in cycles. ``None`` is 6 (about 100 MHz on an
-        ECP5-85 for binary32: registers before and after the multipliers, after their sum,
-        before the normalising shift, before the rounding increment, and at the output).
+        Register stages, 0 to 8: the latency in cycles. ``None`` is 7 (about 130 MHz on an
+        ECP5-85 for binary32, 126 MHz at worst over three placer seeds): registers before the
+        operands' normalising shift, before and after the multipliers, after their sum,
+        after the denormalising shift, before the final selects, and at the output.
 
     Members
     -------
@@ -69,15 +163,15 @@ class FloatMul(FloatUnit):
     PLANS = {
         0: (),
         1: ("out",),
-        2: ("norm", "out"),
-        3: ("norm", _R[1], "out"),
+        2: ("mul.sum", "out"),
+        3: ("mul", "norm", "out"),
         4: ("mul", "norm", _R[1], "out"),
-        5: ("mul", "norm", _R[0], _R[1], "out"),
-        6: ("mul", "mul.sum", "norm", _R[0], _R[1], "out"),
-        7: ("mul", "mul.sum", "norm", _R[0], _R[1], _R[2], "out"),
-        8: ("in", "mul", "mul.sum", "norm", _R[0], _R[1], _R[2], "out"),
+        5: ("mul", "mul.sum", "norm", _R[1], "out"),
+        6: ("subnorm", "mul", "mul.sum", "norm", _R[1], "out"),
+        7: ("subnorm", "mul", "mul.sum", "norm", _R[1], _R[2], "out"),
+        8: ("in", "subnorm", "mul", "mul.sum", "norm", _R[1], _R[2], "out"),
     }
-    DEFAULT_STAGES = 6
+    DEFAULT_STAGES = 7
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
@@ -87,26 +181,64 @@ class FloatMul(FloatUnit):
         })
 
     def datapath(self, m, cuts):
-        fmt = self.fmt
+        fmt, p = self.fmt, self.fmt.precision
+        normalise = self.subnormals == "ieee"
         v = cuts("in", a=self.i_a, b=self.i_b)
         a = unpack(fmt, v.a, self.subnormals)
         b = unpack(fmt, v.b, self.subnormals)
         zero_inf = cuts.wire("zero_inf", a.is_zero & b.is_inf | a.is_inf & b.is_zero)
+        zeros = {}
+        if normalise:
+            zeros = {"lz_a": leading_zeros(cuts, a.sig, "lz_a"),
+                     "lz_b": leading_zeros(cuts, b.sig, "lz_b")}
         # The product's top bit weighs 2**(ea + eb + 1): its room above emin is
         # ea + eb + 1 - emin, the biased exponents' sum less the bias.
-        v = cuts("mul", sig_a=a.sig, sig_b=b.sig, room=a.biased + b.biased - fmt.bias,
-                 sign=a.sign ^ b.sign,
+        v = cuts("subnorm", sig_a=a.sig, sig_b=b.sig, room=a.biased + b.biased - fmt.bias,
+                 **zeros, sign=a.sign ^ b.sign,
                  is_nan=a.is_nan | b.is_nan | zero_inf,
                  is_inf=a.is_inf | b.is_inf,
+                 is_zero=a.is_zero | b.is_zero,
                  invalid=a.is_snan | b.is_snan | zero_inf)
 
-        exp = prepare_exponent(cuts, fmt, None, 2 * fmt.precision, room=v.room)
-        v = cuts("mul.sum", **partial_products(v.sig_a, v.sig_b), exp=exp, sign=v.sign,
-                 is_nan=v.is_nan, is_inf=v.is_inf, invalid=v.invalid)
+        sig_a, sig_b, room = v.sig_a, v.sig_b, v.room
+        if normalise:
+            sig_a, sig_b = (sig_a << v.lz_a)[:p], (sig_b << v.lz_b)[:p]
+            room = room - (v.lz_a + v.lz_b)
+        sig_a, sig_b = cuts.wire("norm_a", sig_a), cuts.wire("norm_b", sig_b)
+        # Past the rows' selection only the block bits of the significands are read.
+        end_a, end_b, _, _ = _split(p, p)
+        v = cuts("mul", sig_a=sig_a[:end_a], sig_b=sig_b[:end_b], **product_rows(sig_a, sig_b), room=room,
+                 sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero,
+                 invalid=v.invalid)
 
-        product = sum_partial_products(v, 2 * fmt.precision)
-        v = cuts("norm", product=product, exp=v.exp, sign=v.sign, is_nan=v.is_nan,
-                 is_inf=v.is_inf, invalid=v.invalid)
+        # Both significands have their top bit set (a zero operand gives a special zero), so
+        # the product's leading one is one of its top two bits: the exponent is prepared for
+        # both, and the top bit picks.
+        width = p + 2
+        exp_hi, exp_lo = (prepare_exponent(cuts, fmt, None, width, room=v.room - k)
+                          for k in (0, 1))
+        blocks_a, blocks_b = (Cat(x, C(0, p - len(x))) for x in (v.sig_a, v.sig_b))  # rows read the rest
+        v = cuts("mul.sum", **partial_products(blocks_a, blocks_b, rows=v), exp_hi=exp_hi,
+                 exp_lo=exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
+                 is_zero=v.is_zero, invalid=v.invalid)
 
-        return round_pack(cuts, fmt, sign=v.sign, exp=v.exp, sig=v.product, is_nan=v.is_nan,
-                          is_inf=v.is_inf, invalid=v.invalid, subnormals=self.subnormals)
+        # With a zero below: the significand under the leading one and the sticky bit. Of
+        # the exponent, only the denormalising shift is picked here; the top bit picks the
+        # rest after the register, beside that shift (less load on the adders' last carry).
+        product = cuts.wire("product", Cat(C(0, 1), sum_partial_products(v, 2 * p)))
+        top, low = cuts.wire("top", product[2 * p]), p - 1
+        v = cuts("norm", frac=Mux(top, product[low:2 * p], product[low - 1:2 * p - 1]),
+                 sticky=product[:low - 1].any() | top & product[low - 1],
+                 right=Mux(top, v.exp_hi.right, v.exp_lo.right), top=top, exp_hi=v.exp_hi,
+                 exp_lo=v.exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
+                 is_zero=v.is_zero, invalid=v.invalid)
+        exp = Signal(exp_hi.shape(), name="exponent_picked")
+        m.d.comb += exp.right.eq(v.right)
+        for field in ("room", "below", "cap"):
+            m.d.comb += getattr(exp, field).eq(Mux(v.top, getattr(v.exp_hi, field),
+                                                   getattr(v.exp_lo, field)))
+
+        # A constant leading one: the rounder's leading-zero count and left shift fold away.
+        return round_pack(cuts, fmt, sign=v.sign, exp=exp, sig=Cat(v.frac, C(1, 1)),
+                          sticky=v.sticky, is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero,
+                          invalid=v.invalid, subnormals=self.subnormals)

@@ -17,7 +17,7 @@ from amaranth.lib import data, wiring
 
 from .format import FloatFormat
 
-__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "FloatUnit", "Cuts", "unpack",
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "ROUND_COUNT", "FloatUnit", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
 
 SUBNORMAL_MODES = ("ieee", "ftz")
@@ -25,6 +25,10 @@ SUBNORMAL_MODES = ("ieee", "ftz")
 #: Boundaries inside :func:`round_pack`, in datapath order: before the normalising shifter,
 #: before the rounding increment, before the final select of special results.
 ROUND_BOUNDARIES = ("round.shift", "round.round", "round.select")
+
+#: A boundary before those, inside the leading-zero count (after the counts of blocks of
+#: :data:`LZ_BLOCK` bits), for wide significands. Only a unit that chooses it passes it.
+ROUND_COUNT = "round.count"
 
 
 def check_unit_params(fmt, subnormals, stages, plans, default):
@@ -105,6 +109,21 @@ class FloatUnit(wiring.Component):
         return m
 
 
+#: Amaranth's class of concatenations (``Cat``), which it does not export.
+_Concat = type(Cat())
+
+
+def _is_constant(value) -> bool:
+    """Whether ``value`` is a constant (a ``Const``, or a ``Cat`` of them)."""
+    if isinstance(value, data.View):
+        return False
+    try:
+        Const.cast(value)
+    except TypeError:
+        return False
+    return True
+
+
 class Cuts:
     """Pipeline registers at the chosen boundaries of a straight-line datapath.
 
@@ -128,6 +147,7 @@ class Cuts:
         self._m = m
         self._chosen = frozenset(chosen)
         self._seen: list[str] = []
+        self._drivers: dict[int, tuple[Signal, Value]] = {}  # id -> (wire, its value)
         self.valid = valid
 
     def __call__(self, name: str, **values) -> SimpleNamespace:
@@ -151,6 +171,10 @@ class Cuts:
         self.valid = valid
         return SimpleNamespace(**out)
 
+    def chooses(self, name: str) -> bool:
+        """Whether ``name`` is a chosen boundary (for one that only exists when chosen)."""
+        return name in self._chosen
+
     def wire(self, name: str, value) -> Signal:
         """``value`` as a named combinational signal.
 
@@ -159,11 +183,29 @@ class Cuts:
         datapath such as a leading-zero counter) by the simulator.
         """
         shape = value.shape() if isinstance(value, data.View) else Value.cast(value).shape()
-        if Shape.cast(shape).width == 0:
-            return value
+        if Shape.cast(shape).width == 0 or _is_constant(value):
+            return value  # (a constant is folded into its uses: a wire of it would be unused)
         sig = Signal(shape, name=name)
         self._m.d.comb += sig.eq(value)
+        if not isinstance(value, data.View):
+            self._drivers[id(sig)] = (sig, Value.cast(value))
         return sig
+
+    def bits(self, value) -> list:
+        """The bits of ``value``, lowest first: ``0`` or ``1`` where they are known constants
+        (constant parts of a ``Cat``, constant bits of the value a :meth:`wire` was given),
+        else 1-bit values. Amaranth folds such constants in the netlist; a unit folding them
+        itself builds no logic that would be left unused."""
+        value = Value.cast(value)
+        if isinstance(value, Const):
+            return [(value.value >> i) & 1 for i in range(len(value))]
+        if isinstance(value, _Concat):
+            return [bit for part in value.parts for bit in self.bits(part)]
+        wire, driver = self._drivers.get(id(value), (None, None))
+        if wire is value:
+            return [b if isinstance(b, int) else value[i]
+                    for i, b in enumerate(self.bits(driver))]
+        return [value[i] for i in range(len(value))]
 
     def check(self):
         """Raise if a chosen boundary was never passed (a misspelt plan)."""
@@ -205,68 +247,93 @@ def unpack(fmt: FloatFormat, word, subnormals: str = "ieee") -> SimpleNamespace:
         is_qnan=is_nan & frac[m - 1], is_snan=is_nan & ~frac[m - 1])
 
 
-def leading_zeros(cuts: Cuts, x, name: str = "lz") -> Value:
+#: Width of the blocks whose leading zeros :func:`leading_zeros` counts before a ``cut``.
+LZ_BLOCK = 16
+
+
+def leading_zeros(cuts: Cuts, x, name: str = "lz", *, cut=None) -> Value:
     """Count of leading zero bits of ``x`` (``len(x)`` when ``x`` is zero), a log-depth tree.
 
-    ``x`` is a value, or its bits lowest first (each ``0``, ``1`` or a 1-bit value). Subtrees
-    whose bits are constants (the padding below ``x``, constant parts of a ``Cat``) are
-    evaluated here instead of built: the back end would fold them anyway and leave their named
-    signals unused. ``cuts`` gives the combinational signals the other nodes are made of.
+    ``x`` is a value, or its bits lowest first (each ``0``, ``1`` or a 1-bit value). Bits known
+    to be constants (see :meth:`Cuts.bits`) are worked out here: the count is made only of the
+    bits above the highest constant one, and subtrees of constants are not built (the back
+    end would fold them and leave their named signals unused). ``cuts`` gives the
+    combinational signals the other nodes are made of. The count has
+    ``len(x).bit_length()`` bits.
+
+    ``cut``, if given, is called between the counts of :data:`LZ_BLOCK`-bit blocks and the
+    rest of the tree with the values the rest is made of (a dict), and returns them as they
+    come out of a pipeline boundary.
     """
-    bits = list(x) if isinstance(x, (list, tuple)) else _bits(x)
+    bits = list(x) if isinstance(x, (list, tuple)) else cuts.bits(x)
+    out_width = len(bits).bit_length()
+    ones = [i for i, b in enumerate(bits) if isinstance(b, int) and b]
+    if ones:  # a one stops the count: what lies below it does not matter
+        bits = bits[ones[-1] + 1:]
     width = len(bits)
-    n = 2
-    while n < width + 1:
-        n *= 2
     variable = [b for b in bits if not isinstance(b, int)]
     if variable:
         wire = cuts.wire(f"{name}_in", Cat(variable))
         wire_bits = iter(wire[i] for i in range(len(variable)))
         bits = [b if isinstance(b, int) else next(wire_bits) for b in bits]
+    levels = width.bit_length()  # of the tree, over the padded bits
     # A one below ``x`` caps the count at ``width`` and keeps every subtree's answer defined.
-    padded = [0] * (n - width - 1) + [1] + bits
+    nodes = [(None, b) for b in [0] * ((1 << levels) - width - 1) + [1] + bits]
 
-    def _any(lo, hi, path):
+    def path(level, index):
+        """The node's place from the root, ``h`` for an upper half and ``l`` for a lower."""
+        return "".join("lh"[index >> k & 1] for k in reversed(range(levels - level)))
+
+    def _any(lo, hi, where):
         """``lo | hi``, a named signal when it is made of two values (but not at the root,
         where nothing uses it)."""
-        if isinstance(lo, int) or isinstance(hi, int) or not path:
+        if isinstance(lo, int) or isinstance(hi, int) or not where:
             return _or(hi, lo)
-        return cuts.wire(f"{name}_any{path}", hi | lo)
+        return cuts.wire(f"{name}_any{where}", hi | lo)
 
-    def tree(v, path):
-        """``(count, any)`` of the bits ``v``, ints where they are constants."""
-        if len(v) == 2:
-            lo, hi = v
-            return (1 - hi if isinstance(hi, int) else ~hi), _any(lo, hi, path)
-        half = len(v) // 2
-        count_hi, any_hi = tree(v[half:], path + "h")
-        count_lo, any_lo = tree(v[:half], path + "l")
-        level = len(v).bit_length() - 2  # bits of a half's count
+    def node(level, index, lo, hi):
+        """``(count, any)`` of two halves' ``lo`` and ``hi``, ints where they are constants;
+        the counts of the halves have ``level - 1`` bits."""
+        (count_lo, any_lo), (count_hi, any_hi) = lo, hi
+        where = path(level, index)
+        if level == 1:  # halves of one bit: the count is whether the upper one is zero
+            count = 1 - any_hi if isinstance(any_hi, int) else ~any_hi
+            return count, _any(any_lo, any_hi, where)
         if isinstance(any_hi, int):  # the half that decides is known
             part, top = (count_hi, 0) if any_hi else (count_lo, 1)
-            count = part + (top << level) if isinstance(part, int) else Cat(part, C(top, 1))
+            count = part + (top << level - 1) if isinstance(part, int) else Cat(part, C(top, 1))
         else:
-            count = cuts.wire(f"{name}_count{path}", Cat(
-                Mux(any_hi, _const(count_hi, level), _const(count_lo, level)), ~any_hi))
-        return count, _any(any_lo, any_hi, path)
+            count = cuts.wire(f"{name}_count{where}", Cat(
+                Mux(any_hi, _const(count_hi, level - 1), _const(count_lo, level - 1)), ~any_hi))
+        return count, _any(any_lo, any_hi, where)
 
-    count = tree(padded, "")[0]
-    return C(count, n.bit_length() - 1) if isinstance(count, int) else count
+    for level in range(1, levels + 1):
+        if level == LZ_BLOCK.bit_length() and cut is not None:
+            nodes = _cut_nodes(nodes, name, cut)
+        nodes = [node(level, i, nodes[2 * i], nodes[2 * i + 1]) for i in range(len(nodes) // 2)]
+    if cut is not None and levels < LZ_BLOCK.bit_length():
+        nodes = _cut_nodes(nodes, name, cut)
+    if not levels:  # a constant one on top
+        return C(0, out_width)
+    count = _const(nodes[0][0], levels)
+    return Cat(count, C(0, out_width - len(count))) if len(count) < out_width else count
 
 
-#: Amaranth's class of concatenations (``Cat``), which it does not export.
-_Concat = type(Cat())
+def _cut_nodes(nodes, name, cut):
+    """``nodes`` of a leading-zero tree through ``cut``, constants beside it."""
+    values = {f"{name}_{kind}{i}": v for i, nd in enumerate(nodes)
+              for kind, v in zip(("count", "any"), nd) if isinstance(v, Value)}
+    out = cut(values)
+    return [tuple(out.get(f"{name}_{kind}{i}", v) for kind, v in zip(("count", "any"), nd))
+            for i, nd in enumerate(nodes)]
 
 
-def _bits(value) -> list:
-    """The bits of ``value``, lowest first: ``0`` or ``1`` where a part of it is a constant
-    (seen through ``Cat``), else 1-bit slices."""
-    value = Value.cast(value)
-    if isinstance(value, Const):
-        return [(value.value >> i) & 1 for i in range(len(value))]
-    if isinstance(value, _Concat):
-        return [bit for part in value.parts for bit in _bits(part)]
-    return [value[i] for i in range(len(value))]
+def _or(a, b):
+    """``a | b`` of two bits, each ``0``, ``1`` or a 1-bit value."""
+    if isinstance(a, int) or isinstance(b, int):
+        known, other = (a, b) if isinstance(a, int) else (b, a)
+        return 1 if known else other
+    return a | b
 
 
 def _const(value, width: int) -> Value:
@@ -281,7 +348,7 @@ def _signed(v) -> Value:
 
 
 def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
-                     denormalise: bool = True, *, room=None) -> data.View:
+                     denormalise: bool = True, *, room=None, marker: bool = False) -> data.View:
     """The exponent side of :func:`round_pack`, to compute before the significand is ready.
 
     Pass the result through the datapath's boundaries and give it to :func:`round_pack` as
@@ -295,7 +362,9 @@ def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
 
     Fields: ``room``; ``below``, ``room < 0``; ``right``, the denormalising right shift
     (capped where every bit is sticky); ``cap``, ``room`` clamped to 0 .. ``width`` (for the
-    one that limits the leading-zero count).
+    one that limits the leading-zero count). With ``marker``, that one itself instead of
+    ``cap``: a ``width``-bit one-hot (or zero) field, wide to carry through registers, but
+    its decoder is then off the path through the leading-zero count too.
     """
     if (exp is None) == (room is None):
         raise ValueError("prepare_exponent takes one of exp and room")
@@ -307,43 +376,44 @@ def prepare_exponent(cuts: Cuts, fmt: FloatFormat, exp, width: int,
         "room": room.shape(),
         "below": unsigned(1),
         "right": unsigned(right_max.bit_length()),
-        "cap": unsigned(width.bit_length()),
+        **({"marker": unsigned(width)} if marker else {"cap": unsigned(width.bit_length())}),
     })
     prep = Signal(layout, name="exponent")
     below = room < 0
-    cuts._m.d.comb += [
-        prep.room.eq(room),
-        prep.below.eq(below),
-        prep.cap.eq(Mux(below, 0, Mux(room > width, width, room))),
-    ]
+    cuts._m.d.comb += [prep.room.eq(room), prep.below.eq(below)]
+    if marker:
+        # From ``room`` itself, by equalities without a carry chain: the one is at the top
+        # for ``room <= 0``, ``room`` places under it for ``0 < room < width``.
+        cuts._m.d.comb += prep.marker.eq(Cat(*(room == width - 1 - i for i in range(width - 1)),
+                                             below | (room == 0)))
+    else:
+        cuts._m.d.comb += prep.cap.eq(Mux(below, 0, Mux(room > width, width, room)))
     if denormalise:
         # Past p + 1 places the round bit is zero and every bit is sticky.
         cuts._m.d.comb += prep.right.eq(Mux(room < -right_max, right_max, Mux(below, -room, 0)))
     return prep
 
 
-def _or(a, b):
-    """``a | b`` of two bits, each ``0``, ``1`` or a 1-bit value."""
-    if isinstance(a, int) or isinstance(b, int):
-        known, other = (a, b) if isinstance(a, int) else (b, a)
-        return 1 if known else other
-    return a | b
-
-
-def _marker(cuts: Cuts, fmt: FloatFormat, prep, exp, width: int) -> list:
+def _marker_bits(cap, width: int) -> list:
     """The bits, lowest first, of a ``width``-bit vector with a one where a significand's top
-    bit would weigh ``2**emin`` (none if it weighs less): worked out here for a constant
-    ``exp`` (a conversion's), so that the leading-zero count folds it in."""
+    bit would weigh ``2**emin`` (none if it weighs less): the one ``cap`` places under it."""
+    return [cap == width - 1 - i for i in range(width)]
+
+
+def _marker(fmt: FloatFormat, prep, exp, width: int) -> list:
+    """:func:`_marker_bits` for :func:`round_pack`: from ``prep``, made there or prepared
+    (with ``marker``), or constants for a constant ``exp`` (a conversion's), so that the
+    leading-zero count folds them in."""
+    if "marker" in prep.shape().members:
+        return [prep.marker[i] for i in range(width)]
     if not isinstance(exp, data.View):
         try:
             room = Const.cast(exp).value - fmt.emin
         except TypeError:  # not a constant
             pass
         else:
-            cap = min(max(room, 0), width)  # as ``prep.cap``
-            return [int(cap == width - 1 - i) for i in range(width)]
-    marker = cuts.wire("marker", Cat(prep.cap == width - 1 - i for i in range(width)))
-    return [marker[i] for i in range(width)]
+            return [int(b) for b in _marker_bits(min(max(room, 0), width), width)]
+    return _marker_bits(prep.cap, width)
 
 
 def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_sign=None,
@@ -406,20 +476,38 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
     # placed at the emin position caps the count at the left shift that reaches emin.
     prep = exp if isinstance(exp, data.View) else \
         prepare_exponent(cuts, fmt, exp, width, denormalise)
-    if len(prep.cap) != width.bit_length():
+    fits = len(prep.marker) == width if "marker" in prep.shape().members else \
+        len(prep.cap) == width.bit_length()
+    if not fits:
         raise ValueError(f"the prepared exponent is for another significand width than {width}")
     if denormalise:
         right = fmt.precision + 1
-        wide = cuts.wire("denorm", Cat(C(0, right), sig) >> prep.right)
-        sig_r, lost = wide[right:], wide[:right].any() | sticky
+        sig_r = cuts.wire("denorm", sig >> prep.right)
+        # The bits shifted out, found beside the shifter: those of sig below the shift amount.
+        mask = Cat(prep.right > i for i in range(right))
+        lost = (sig[:right] & mask).any() | sticky
     else:
         sig_r, lost = sig, sticky
-    left = leading_zeros(cuts, [_or(s, k) for s, k in zip(_bits(sig), _marker(cuts, fmt, prep, exp, width))])
-    nonzero = cuts.wire("nonzero", sig.any())
-    v = cuts("round.shift", sign=sign, zero_sign=sign if zero_sign is None else zero_sign,
-             sig=sig_r, lost=lost, left=left, room=prep.room, below=prep.below,
-             nonzero=nonzero, is_nan=is_nan, is_inf=is_inf, is_zero=is_zero, invalid=invalid,
-             divbyzero=divbyzero)
+    marker = _marker(fmt, prep, exp, width)
+    sig_bits = cuts.bits(sig)
+    nonzero = C(1, 1) if any(isinstance(b, int) and b for b in sig_bits) else \
+        cuts.wire("nonzero", sig.any())
+    v = SimpleNamespace(sign=sign, zero_sign=sign if zero_sign is None else zero_sign,
+                        sig=sig_r, lost=lost, room=prep.room, below=prep.below, nonzero=nonzero,
+                        is_nan=is_nan, is_inf=is_inf, is_zero=is_zero, invalid=invalid,
+                        divbyzero=divbyzero)
+
+    def count_cut(values):
+        """The boundary inside the leading-zero count, where a unit chooses it."""
+        nonlocal v
+        v = cuts(ROUND_COUNT, **vars(v), **values)
+        return {key: getattr(v, key) for key in values}
+
+    left = leading_zeros(cuts, [_or(s, k) for s, k in zip(sig_bits, marker)],
+                         cut=count_cut if cuts.chooses(ROUND_COUNT) else None)
+    v = cuts("round.shift", sign=v.sign, zero_sign=v.zero_sign, sig=v.sig, lost=v.lost,
+             left=left, room=v.room, below=v.below, nonzero=v.nonzero, is_nan=v.is_nan,
+             is_inf=v.is_inf, is_zero=v.is_zero, invalid=v.invalid, divbyzero=v.divbyzero)
 
     shifted = (v.sig << v.left)[:width]
     # Biased exponent minus one for a normal result (the rounded significand's hidden bit adds

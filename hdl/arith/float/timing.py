@@ -1,0 +1,188 @@
+"""A delay model of the floating-point datapaths, and the register placement it drives.
+
+Units whose stage count is a parameter over a long datapath (the digit recurrences of
+:mod:`.div` and :mod:`.sqrt`, the conversions) describe it as segments between named
+boundaries, each with a delay from this model, and :class:`StagePlans` places their
+registers: for any stage count, where the longest stage is shortest; by default, as few as
+fit a 100 MHz clock.
+
+The figures are ECP5 ones (ns, clock-to-output and routing included) for a LUT level and a
+carry chain, fitted to nextpnr's critical paths of binary32 units on an LFE5U-85F: a
+recurrence step ~5 ns whatever its width (routing dominates), two ~10 ns; the denormalising
+shift by a registered amount with the OR of its lost bits ~8 ns (~10 ns in binary64); the
+rounding increment to the output word ~7 ns. The model errs long on the rounding (by ~2 ns):
+only the relative sizes matter for balancing the stages; the absolute ones set the default
+stage counts.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from .format import FloatFormat
+
+__all__ = ["LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
+           "prepare_delay", "round_delays", "StagePlans"]
+
+LUT_NS = 1.2
+BUDGET_NS = 9.5  # a 100 MHz clock less a margin for placement
+
+
+def lut_delay(levels: float) -> float:
+    return LUT_NS * levels
+
+
+def carry_delay(width: int) -> float:
+    """An adder or comparator of ``width`` bits: entry LUT, carry chain, exit routing."""
+    return 2.4 + 0.03 * width
+
+
+def tree_levels(width: int, fan_in: int = 2) -> int:
+    """Levels of a ``fan_in``-input tree over ``width`` bits (a reduction, a priority count)."""
+    return max(1, math.ceil(math.log(max(width, 2), fan_in)))
+
+
+def shifter_delay(width: int) -> float:
+    """A barrel shifter over ``width`` bits (a 4:1 multiplexer takes a LUT and a PFUMX)."""
+    return lut_delay(0.7 * tree_levels(width))
+
+
+def prepare_delay(fmt: FloatFormat, from_room: bool = False) -> float:
+    """:func:`~.round.prepare_exponent`: the room above emin (an add, unless ``from_room``),
+    then beside each other the compares that clamp it and the negation that gives the right
+    shift, and their selects."""
+    compare = carry_delay(fmt.exp_bits + 3) + lut_delay(1)
+    return compare if from_room else carry_delay(fmt.exp_bits + 3) + compare
+
+
+def round_delays(fmt: FloatFormat, width: int, denormalise: bool = True,
+                 leading_one: bool = False, prepared: bool = False) -> list[float]:
+    """Logic before each of :data:`~.round.ROUND_BOUNDARIES` and ``"out"`` in
+    :func:`~.round.round_pack`, for a ``width``-bit significand.
+
+    ``leading_one``: its top bit is a constant one, so the leading-zero count and the left
+    shift fold away. ``prepared``: the exponent comes from :func:`~.round.prepare_exponent`
+    through a register, not computed before ``"round.shift"``.
+
+    Before ``"round.shift"``, beside each other: the denormalising right shift (by the
+    prepared amount) with the OR of the bits it loses, and the leading-zero count capped at
+    emin. Before ``"round.round"``: the normalising left shift, beside the biased exponent
+    (``room - left``). Before ``"round.select"``: the increment beside the reduction of the
+    bits under the round bit, the round-up select, then the exponent and overflow selects
+    by the carry and hidden bits (their adds and compares run beside). Before ``"out"``: the
+    special-result selects.
+    """
+    p = fmt.precision
+    exp_width = fmt.exp_bits + 3
+    count = 0.0 if leading_one else lut_delay(1 + tree_levels(width) + 1)  # marker, tree
+    if denormalise:
+        lost = lut_delay(tree_levels(p + 1, 4))
+        shift_right = shifter_delay(width + p + 1) + lost
+    else:
+        shift_right = 0.0
+    shift = (0.0 if prepared else prepare_delay(fmt)) + max(count, shift_right)
+    if leading_one:
+        normalise = lut_delay(1)  # the exponent's select for a subnormal result
+    else:
+        normalise = max(shifter_delay(width), carry_delay(exp_width)) + lut_delay(1)
+    rest = lut_delay(tree_levels(width - p, 4))
+    round_up = max(carry_delay(p + 1), rest) + lut_delay(3)
+    return [shift, normalise, round_up, lut_delay(2)]
+
+
+class StagePlans(Mapping):
+    """Register placements for every stage count of a straight-line datapath.
+
+    ``segments`` lists ``(boundary, delay)`` in datapath order, ``delay`` being the logic
+    between the previous boundary and this one. The last boundary (``"out"``) and those in
+    ``forced`` always get a register, except in the all-combinational plan of zero stages
+    (allowed when nothing else is forced). For a stage count, the longest stage (by the delay
+    model) is made as short as possible: registers go as late as that bound allows, and any
+    left over split the stages where that shortens them most. ``offset`` is added to the
+    register count and boundaries in ``hidden`` are left out of the plans: an iterative core
+    is a forced boundary whose registers the unit makes itself, ``offset + 1`` cycles of
+    latency.
+
+    A mapping ``stages -> tuple of boundaries`` (computed on demand), as
+    :class:`~.round.FloatUnit` expects of ``PLANS``.
+    """
+
+    def __init__(self, segments, forced=(), offset=0, hidden=()):
+        self._names = [name for name, _ in segments]
+        self._hidden = set(hidden)
+        self._delays = [float(d) for _, d in segments]
+        self._forced = set(forced) | {self._names[-1]}
+        self._offset = offset
+        self._prefix = [0.0]
+        for d in self._delays:
+            self._prefix.append(self._prefix[-1] + d)
+        n = len(self._names)
+        # Without a forced register inside, zero stages (all combinational) is allowed too.
+        self._lo = 0 if len(self._forced) == 1 and not offset else len(self._forced) + offset
+        self._hi = n + offset
+        self._bounds = sorted({self._prefix[j + 1] - self._prefix[i]
+                               for i in range(n + 1) for j in range(i, n)})
+
+    def __len__(self):
+        return self._hi - self._lo + 1
+
+    def __iter__(self):
+        return iter(range(self._lo, self._hi + 1))
+
+    def __contains__(self, stages):
+        return isinstance(stages, int) and not isinstance(stages, bool) \
+            and self._lo <= stages <= self._hi
+
+    def _cost(self, i, j):
+        """Delay of the stage between chosen boundaries ``i`` and ``j`` (``i = -1``: input)."""
+        return self._prefix[j + 1] - self._prefix[i + 1]
+
+    def _latest(self, bound):
+        """Boundary indices chosen as late as ``bound`` allows (a longer single segment gets a
+        stage of its own)."""
+        chosen, last = [], -1
+        for j, name in enumerate(self._names):
+            if j + 1 < len(self._names) and name not in self._forced \
+                    and self._cost(last, j + 1) <= bound:
+                continue
+            chosen.append(j)
+            last = j
+        return chosen
+
+    def __getitem__(self, stages):
+        if stages not in self:
+            raise KeyError(stages)
+        count = stages - self._offset
+        if count == 0:
+            return ()
+        # The smallest bound met with at most ``count`` registers, by bisection.
+        lo, hi = 0, len(self._bounds) - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if len(self._latest(self._bounds[mid])) <= count:
+                hi = mid
+            else:
+                lo = mid + 1
+        chosen = self._latest(self._bounds[lo])
+        while len(chosen) < count:
+            chosen = self._split_longest(chosen)
+        return tuple(self._names[j] for j in chosen if self._names[j] not in self._hidden)
+
+    def _split_longest(self, chosen):
+        best = None
+        for k, j in enumerate(chosen):
+            i = chosen[k - 1] if k else -1
+            for c in range(i + 1, j):
+                key = (max(self._cost(i, c), self._cost(c, j)) - self._cost(i, j), c)
+                if best is None or key < best[0]:
+                    best = (key, c)
+        return sorted(chosen + [best[1]])
+
+    def default(self, budget=BUDGET_NS):
+        """The fewest stages that meet ``budget``, or the delay of a forced boundary's own
+        segment if longer (an iterative core's cycle sets the clock: the logic around it
+        need not be faster). A single segment over the bound gets a stage of its own."""
+        index = {name: j for j, name in enumerate(self._names)}
+        bound = max([budget] + [self._cost(index[n] - 1, index[n]) for n in self._forced])
+        return len(self._latest(bound)) + self._offset
