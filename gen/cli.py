@@ -140,7 +140,7 @@ def _fpu_docs() -> dict[str, Doc]:
                           "(smaller, as vendor IP)", "", "ieee or ftz"),
         "stages": Doc("pipeline register stages = latency", "cycles",
                       "a count the unit can place (its error names the range); the unit's default "
-                      "meets 100 MHz on ECP5 for binary32"),
+                      "meets 100 MHz on ECP5 for binary32 (iterative div/sqrt: slower the fewer cycles_per_op)"),
         "cycles_per_op": Doc("div and sqrt: cycles per operation; 1 fully pipelined, K > 1 iterative "
                              "and smaller, with i_ready backpressure", "cycles",
                              f"integer 1..{MAX_CYCLES_PER_OP}; 1 for other ops"),
