@@ -9,6 +9,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.kfgen-installed
 OUT    ?= out
 JOBS   ?= 2
+FPU_OPS := add sub mul div sqrt fma i2f f2i
 
 .PHONY: all verilog test test-full bench bench-fpu plots lint clean distclean
 
@@ -24,6 +25,7 @@ $(STAMP): pyproject.toml
 verilog: $(STAMP)
 	$(VENV)/bin/kfgen castella -o $(OUT)/castella
 	$(VENV)/bin/kfgen castella --tracks 8 --name castella8 -o $(OUT)/castella8
+	for op in $(FPU_OPS); do $(VENV)/bin/kfgen fpu --op $$op --name fpu_$$op -o $(OUT)/fpu_$$op || exit 2; done
 
 test: $(STAMP)
 	$(PY) -m pytest -q tests
