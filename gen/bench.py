@@ -44,6 +44,16 @@ def _run(cmd: list[str], cwd: Path, log: str) -> subprocess.CompletedProcess:
     return proc
 
 
+def write_core(core, params, out: Path) -> tuple[Path, dict]:
+    """Generate ``params`` into ``out/<name>/``; returns that directory and the manifest."""
+    work = out / params.name
+    work.mkdir(parents=True, exist_ok=True)
+    files = generate(core, params)
+    for name, text in files.items():
+        (work / name).write_bytes(text.encode())
+    return work, json.loads(files[f"{params.name}.json"])
+
+
 def xilinx_resources(work: Path, top: str) -> dict:
     """LUT (logic, and sites used as memory), FF, DSP48E1 and 36 Kb BRAM after ``synth_xilinx``."""
     script = f"read_verilog {top}.v; synth_xilinx -flatten -top {top}; tee -q -o xilinx_stat.json stat -json"
@@ -238,12 +248,7 @@ def main(argv=None) -> int:
         with ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 2) - 1)) as pool:
             for n in args.tracks:
                 params = CastellaParams(tracks=n, name=f"castella_t{n}")
-                work = out / params.name
-                work.mkdir(parents=True, exist_ok=True)
-                files = generate(core, params)
-                for name, text in files.items():
-                    (work / name).write_bytes(text.encode())
-                manifest = json.loads(files[f"{params.name}.json"])
+                work, manifest = write_core(core, params, out)
                 row = {"tracks": n, "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
                        "track_interval": manifest["track_interval_cycles"]}
                 rows.append(row)

@@ -23,8 +23,8 @@ from pathlib import Path
 from kfgen.hdl.arith.float.params import OPS, FpuParams
 from kfgen.sim.toolchain import ToolMissing
 
-from .bench import ecp5_fmax, xilinx_resources
-from .cli import CORES, generate
+from .bench import ecp5_fmax, write_core, xilinx_resources
+from .cli import CORES
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
 
@@ -176,12 +176,7 @@ def main(argv=None) -> int:
             for v in _work_items(args):
                 params = FpuParams(op=v.op, format=v.format, subnormals=v.subnormals,
                                    cycles_per_op=v.cycles_per_op, name=v.name)
-                work = out / params.name
-                work.mkdir(parents=True, exist_ok=True)
-                files = generate(core, params)
-                for name, text in files.items():
-                    (work / name).write_bytes(text.encode())
-                manifest = json.loads(files[f"{params.name}.json"])
+                work, manifest = write_core(core, params, out)
                 row = {"op": v.op, "label": v.label, "format": v.format, "latency": manifest["latency_cycles"],
                        "ii": manifest["initiation_interval"]}
                 rows.append(row)

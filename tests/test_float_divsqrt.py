@@ -17,11 +17,12 @@ import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
-from kfgen.hdl.arith.float.div import FloatDiv, StagePlans
+from kfgen.hdl.arith.float.div import FloatDiv
 from kfgen.hdl.arith.float.f2i import FloatToInt
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.arith.float.i2f import IntToFloat
 from kfgen.hdl.arith.float.sqrt import FloatSqrt
+from kfgen.hdl.arith.float.timing import StagePlans
 from kfgen.sim.float_ref import directed_corpus, random_operands, ref_op
 
 UNITS = {"div": FloatDiv, "sqrt": FloatSqrt, "i2f": IntToFloat, "f2i": FloatToInt}

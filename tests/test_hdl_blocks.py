@@ -31,6 +31,27 @@ def run_comb(m, inputs, outputs, vectors):
     return got
 
 
+def run_staged(m, inputs, out, vectors):
+    """Drive ``vectors`` (tuples for ``inputs``) one a clock and collect the ``Staged`` value
+    ``out``, ``out.stage`` clocks later."""
+    got = []
+
+    async def tb(ctx):
+        for i in range(len(vectors) + out.stage):
+            if i < len(vectors):
+                for s, v in zip(inputs, vectors[i]):
+                    ctx.set(s, v)
+            if i >= out.stage:
+                got.append(ctx.get(out.sig))
+            await ctx.tick()
+
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    sim.add_testbench(tb)
+    sim.run()
+    return got
+
+
 @pytest.mark.parametrize("shift", [-2, 0, 1, 3])
 def test_rsr_matches_model_exhaustively(shift):
     m = Module()
@@ -97,21 +118,7 @@ def test_gain_divider_matches_model(extra):
     # corners: zero, just below and at the overflow boundary
     nums = np.concatenate([nums, [0, 99, 100, 65535]])
     dens = np.concatenate([dens, [5, 100, 100, 65535]])
-    got = []
-
-    async def tb(ctx):
-        for i in range(len(nums) + k.stage):
-            if i < len(nums):
-                ctx.set(num, int(nums[i]))
-                ctx.set(den, int(dens[i]))
-            if i >= k.stage:
-                got.append(ctx.get(k.sig))
-            await ctx.tick()
-
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
-    sim.add_testbench(tb)
-    sim.run()
+    got = run_staged(m, (num, den), k, [(int(n), int(d)) for n, d in zip(nums, dens)])
     want, _ = model.gain_divide(nums, dens, extra, p.gain_width)
     assert got == [int(w) for w in want]
 
@@ -172,21 +179,7 @@ def test_shift_add_multiply_is_exact(const):
     prod = shift_add_multiply(pl, "p", Staged(a, 0), rhs)
     assert prod.stage == 3  # ceil(log2(5)) adder levels
     vecs = [(x, y) for x in range(32) for y in (-256, -255, -1, 0, 1, 77, 255)]
-    got = []
-
-    async def tb(ctx):
-        for i in range(len(vecs) + prod.stage):
-            if i < len(vecs):
-                ctx.set(a, vecs[i][0])
-                ctx.set(b, vecs[i][1])
-            if i >= prod.stage:
-                got.append(ctx.get(prod.sig))
-            await ctx.tick()
-
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
-    sim.add_testbench(tb)
-    sim.run()
+    got = run_staged(m, (a, b), prod, vecs)
     assert got == [x * (y if const is None else const) for x, y in vecs]
 
 

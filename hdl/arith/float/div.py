@@ -11,8 +11,8 @@ from amaranth.hdl import C, Cat, Mux, Signal, Value
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
-from .round import (ROUND_BOUNDARIES, FloatUnit, leading_zeros, prepare_exponent, round_pack,
-                    unpack)
+from .round import (ROUND_BOUNDARIES, FloatUnit, as_format, leading_zeros, prepare_exponent,
+                    round_pack, unpack)
 from .timing import (StagePlans, carry_delay, lut_delay, prepare_delay, round_delays,
                      shifter_delay, tree_levels)
 
@@ -85,9 +85,7 @@ class RecurrenceUnit(FloatUnit):
     SHIFTED: tuple[str, ...] = ()
 
     def __init__(self, fmt, subnormals, stages, cycles_per_op, ports):
-        fmt = FloatFormat.parse(fmt) if isinstance(fmt, str) else fmt
-        if not isinstance(fmt, FloatFormat):
-            raise ValueError(f"fmt must be a FloatFormat or a format name, not {fmt!r}")
+        fmt = as_format(fmt)
         steps = self.iterations(fmt)
         if isinstance(cycles_per_op, bool) or not isinstance(cycles_per_op, int) \
                 or not 1 <= cycles_per_op <= steps:
@@ -96,8 +94,6 @@ class RecurrenceUnit(FloatUnit):
         self._cycles = cycles_per_op
         self._per_cycle = -(-steps // cycles_per_op)
         self._steps = steps if cycles_per_op == 1 else self._per_cycle * cycles_per_op
-        self.PLANS = self._plans(fmt, subnormals == "ieee")
-        self.DEFAULT_STAGES = self.PLANS.default()
         extra = {"i_ready": Out(1)} if cycles_per_op > 1 else {}
         super().__init__(fmt, subnormals, stages, lambda f: {**ports(f), **extra})
 
@@ -114,6 +110,10 @@ class RecurrenceUnit(FloatUnit):
     @property
     def initiation_interval(self) -> int:
         return self._cycles
+
+    def stage_plans(self, fmt, subnormals):
+        plans = self._plans(fmt, subnormals == "ieee")
+        return plans, plans.default()
 
     def _plans(self, fmt, ieee):
         op = self.OP

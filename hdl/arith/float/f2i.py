@@ -5,7 +5,7 @@ from __future__ import annotations
 from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
-from .div import StagePlans, carry_delay, lut_delay, shifter_delay
+from .timing import StagePlans, carry_delay, lut_delay, shifter_delay
 from .format import FloatFormat
 from .round import FloatUnit, leading_zeros, unpack
 
@@ -58,20 +58,20 @@ class FloatToInt(FloatUnit):
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
-        fmt = FloatFormat.parse(fmt) if isinstance(fmt, str) else fmt
-        if isinstance(fmt, FloatFormat):  # (else the base class explains what is wrong)
-            window = 32 + self._fraction_bits(fmt)
-            self.PLANS = StagePlans([
-                ("in", 0.0),
-                ("unpack", lut_delay(3) + 2 * carry_delay(fmt.exp_bits + 2)),
-                ("shift", shifter_delay(window) + lut_delay(1)),
-                ("out", lut_delay(3) + carry_delay(33)),
-            ])
-            self.DEFAULT_STAGES = self.PLANS.default()
         super().__init__(fmt, subnormals, stages, lambda f: {
             "i_valid": In(1), "i_a": In(f.width),
             "o_valid": Out(1), "o_y": Out(32), "o_flags": Out(5),
         })
+
+    def stage_plans(self, fmt, subnormals):
+        window = 32 + self._fraction_bits(fmt)
+        plans = StagePlans([
+            ("in", 0.0),
+            ("unpack", lut_delay(3) + 2 * carry_delay(fmt.exp_bits + 2)),
+            ("shift", shifter_delay(window) + lut_delay(1)),
+            ("out", lut_delay(3) + carry_delay(33)),
+        ])
+        return plans, plans.default()
 
     @staticmethod
     def _fraction_bits(fmt):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from amaranth.hdl import C, Cat, Mux, signed
 from amaranth.lib.wiring import In, Out
 
-from .div import StagePlans, carry_delay, lut_delay, round_delays
+from .timing import StagePlans, carry_delay, lut_delay, round_delays
 from .format import FloatFormat
 from .round import ROUND_BOUNDARIES, FloatUnit, round_pack
 
@@ -52,17 +52,16 @@ class IntToFloat(FloatUnit):
 
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
-        fmt = FloatFormat.parse(fmt) if isinstance(fmt, str) else fmt
-        if isinstance(fmt, FloatFormat):  # (else the base class explains what is wrong)
-            width = max(32, fmt.precision + 2)
-            self.PLANS = StagePlans(
-                [("in", 0.0), ("abs", carry_delay(32) + lut_delay(1))]
-                + list(zip(ROUND_BOUNDARIES + ("out",), round_delays(fmt, width, False))))
-            self.DEFAULT_STAGES = self.PLANS.default()
         super().__init__(fmt, subnormals, stages, lambda f: {
             "i_valid": In(1), "i_a": In(32),
             "o_valid": Out(1), "o_y": Out(f.width), "o_flags": Out(5),
         })
+
+    def stage_plans(self, fmt, subnormals):
+        width = max(32, fmt.precision + 2)
+        plans = StagePlans([("in", 0.0), ("abs", carry_delay(32) + lut_delay(1))]
+                           + list(zip(ROUND_BOUNDARIES + ("out",), round_delays(fmt, width, False))))
+        return plans, plans.default()
 
     def datapath(self, m, cuts):
         fmt = self.fmt

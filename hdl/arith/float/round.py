@@ -17,7 +17,7 @@ from amaranth.lib import data, wiring
 
 from .format import FloatFormat
 
-__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "ROUND_COUNT", "FloatUnit", "Cuts", "unpack",
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "FloatUnit", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
 
 SUBNORMAL_MODES = ("ieee", "ftz")
@@ -31,16 +31,22 @@ ROUND_BOUNDARIES = ("round.shift", "round.round", "round.select")
 ROUND_COUNT = "round.count"
 
 
+def as_format(fmt) -> FloatFormat:
+    """``fmt`` as a :class:`FloatFormat` (it may be one or its name); ``ValueError`` if neither."""
+    if isinstance(fmt, str):
+        fmt = FloatFormat.parse(fmt)
+    if not isinstance(fmt, FloatFormat):
+        raise ValueError(f"fmt must be a FloatFormat or a format name, not {fmt!r}")
+    return fmt
+
+
 def check_unit_params(fmt, subnormals, stages, plans, default):
     """Validate the common constructor arguments of a unit; returns ``(fmt, stages)``.
 
     ``fmt`` may be a :class:`FloatFormat` or its name; ``plans`` maps each allowed stage count
     to the boundaries that get a register; ``stages=None`` means ``default``.
     """
-    if isinstance(fmt, str):
-        fmt = FloatFormat.parse(fmt)
-    if not isinstance(fmt, FloatFormat):
-        raise ValueError(f"fmt must be a FloatFormat or a format name, not {fmt!r}")
+    fmt = as_format(fmt)
     if subnormals not in SUBNORMAL_MODES:
         raise ValueError(f"subnormals must be one of {', '.join(map(repr, SUBNORMAL_MODES))}, "
                          f"not {subnormals!r}")
@@ -56,7 +62,8 @@ class FloatUnit(wiring.Component):
     """Common frame of the pipelined units: parameters, properties and the output stage.
 
     A subclass sets ``PLANS`` (stage count -> boundaries that get a register, in datapath
-    order, ending with ``"out"`` for the output register) and ``DEFAULT_STAGES``, and writes
+    order, ending with ``"out"`` for the output register) and ``DEFAULT_STAGES``, or overrides
+    :meth:`stage_plans` when they depend on the format, and writes
     ``datapath(m, cuts) -> (word, flags)``; :meth:`elaborate` registers the result at ``"out"``
     and drives ``o_y``, ``o_flags`` and ``o_valid``.
     """
@@ -67,6 +74,8 @@ class FloatUnit(wiring.Component):
     def __init__(self, fmt, subnormals, stages, ports):
         """``ports(fmt)`` gives the signature members for the checked format."""
         try:
+            fmt = as_format(fmt)
+            self.PLANS, self.DEFAULT_STAGES = self.stage_plans(fmt, subnormals)
             self._fmt, self._stages = check_unit_params(fmt, subnormals, stages, self.PLANS,
                                                         self.DEFAULT_STAGES)
         except ValueError:
@@ -74,6 +83,11 @@ class FloatUnit(wiring.Component):
             raise
         self._subnormals = subnormals
         super().__init__(ports(self._fmt))
+
+    def stage_plans(self, fmt: FloatFormat, subnormals: str):
+        """``(plans, default stage count)`` for ``fmt``: the class's ``PLANS`` and
+        ``DEFAULT_STAGES`` unless the unit overrides this."""
+        return type(self).PLANS, type(self).DEFAULT_STAGES
 
     @property
     def fmt(self) -> FloatFormat:
