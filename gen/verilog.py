@@ -24,7 +24,7 @@ from amaranth.lib import wiring
 
 from . import __version__
 
-__all__ = ["emit", "waivers", "header", "unused_aliases", "EmitError"]
+__all__ = ["emit", "waivers", "header", "unused_aliases", "declared_names", "EmitError"]
 
 
 class EmitError(RuntimeError):
@@ -128,6 +128,11 @@ _WIRING = re.compile(rf"{_NAME}|\[[^\]]*\]|\d+'[sS]?[bodhBODH][0-9a-fA-FxXzZ_?]+
 
 def _plain(name: str) -> str:
     return name[1:].rstrip() if name.startswith("\\") else name
+
+
+def declared_names(verilog: str) -> set[str]:
+    """Every port, wire and register name the Verilog declares."""
+    return {_plain(m.group(2)) for m in map(_DECL.match, verilog.splitlines()) if m}
 
 
 def unused_aliases(verilog: str) -> list[str]:

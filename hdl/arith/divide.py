@@ -15,7 +15,7 @@ def gain_divider(pl: Pipeline, name: str, num: Staged, den: Staged, extra: int, 
     ``extra`` aligns the operands' binary points (``num`` is shifted left for ``extra > 0``,
     ``den`` for ``extra < 0``). One quotient bit per stage, ``width + 1`` stages, then a
     round-half-up stage: latency ``width + 4`` cycles after the later operand, one result
-    per clock. Mirrors :func:`kfgen.sim.castella.gain_divide`.
+    per clock. Mirrors :func:`kfgen.sim.castella.model.gain_divide`.
     """
     n = pl.reg(f"{name}_n", lambda x: x << max(extra, 0), num)
     d = pl.reg(f"{name}_d", lambda x: x << max(-extra, 0), den)

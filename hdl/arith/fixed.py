@@ -1,6 +1,6 @@
 """Fixed-point building blocks shared by the cores: rounding shifts and saturation.
 
-They mirror ``kfgen.sim.castella.rsr`` and ``sat`` exactly; ``tests/test_arith_fixed.py``
+They mirror ``kfgen.sim.castella.model.rsr`` and ``sat`` exactly; ``tests/castella/test_castella_blocks.py``
 checks each against the model in Amaranth's simulator.
 """
 

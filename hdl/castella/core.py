@@ -13,7 +13,7 @@ when the FIFO is sure to have room for it, so ``m_axis_tready`` backpressure nev
 the datapath. With ``track_interval`` or more tracks in round robin the core accepts one
 measurement every clock.
 
-Bit-exact twin: :func:`kfgen.sim.castella.fixed_step`.
+Bit-exact twin: :func:`kfgen.sim.castella.model.fixed_step`.
 """
 
 from __future__ import annotations
@@ -83,10 +83,10 @@ class Castella(wiring.Component):
             "m_axis_tid": Out(params.tid_width),
             "m_axis_tuser": Out(params.port_width("m_axis_tuser")),
         })
-        # Build the datapath once on a throwaway module to learn the schedule.
-        scratch = Module()
-        self._write_stage = self._datapath(scratch, None)[0]
-        scratch._MustUse__silence = True
+        # The module is built once, on first need: the schedule (and so the latency and the
+        # FIFO depth) is only known once the datapath is built.
+        self._module = None
+        self._write_stage = None
 
     @property
     def params(self) -> CastellaParams:
@@ -95,37 +95,39 @@ class Castella(wiring.Component):
     @property
     def track_interval(self) -> int:
         """Minimum cycles between two accepted measurements of the same track."""
+        self._build()
         return self._write_stage
 
     @property
     def fifo_depth(self) -> int:
-        return self._write_stage + 3
+        return self.track_interval + 3
 
     @property
     def latency(self) -> int:
         """Cycles from the input handshake to the result on ``m_axis`` (output ready)."""
-        return self._write_stage + 2
+        return self.track_interval + 2
 
     @property
     def initiation_interval(self) -> int:
-        return 1
+        """Fewest cycles between two accepted measurements: 1 (of different tracks) once there
+        are two tracks; with one track, its own ``track_interval``."""
+        return 1 if self._p.tracks > 1 else self.track_interval
+
+    @property
+    def sustained_rate(self) -> float:
+        """Measurements per clock in steady state with every track in rotation:
+        ``min(1, tracks / track_interval)``."""
+        return min(1.0, self._p.tracks / self.track_interval)
 
     # ------------------------------------------------------------------ datapath
     def _datapath(self, m, state_in):
         """Build the datapath; return ``(write_stage, new_state, out_fields, flag)``.
 
         ``state_in`` is a dict of Staged inputs (``y``, ``restart`` and the stored state
-        fields at stage 1); ``None`` builds on dummies to measure the schedule.
+        fields at stage 1).
         """
         p = self._p
         pl = Pipeline(m)
-        dummy = state_in is None
-        if dummy:
-            lay = state_layout(p)
-            state_in = {"y": Staged(Signal(fmt_shape(p.range_fmt), name="y"), 1),
-                        "restart": Staged(Signal(name="restart"), 1)}
-            for name, field in lay:
-                state_in[name] = Staged(Signal(field.shape, name=name), 1)
         # Register the state words once more: LUT RAM read and bypass make a slow path.
         s = {k: pl.reg(f"{k}_s2", lambda x: x, v) for k, v in state_in.items()}
         fr, fv = p.range_fmt, p.vel_fmt
@@ -140,16 +142,12 @@ class Castella(wiring.Component):
             return val, pl.reg(name + "_sat", lambda x: saturate(x, fmt)[1], v)
 
         def rom(name, table, index: Staged, width):
-            if dummy:
-                data = Signal(width, name=name)
-            else:
-                mem = memory.Memory(shape=unsigned(width), depth=len(table), init=table)
-                m.submodules[name] = mem
-                port = mem.read_port()  # read latency: 1 cycle
-                m.d.comb += port.addr.eq(pl.at(index, index.stage))
-                data = port.data
+            mem = memory.Memory(shape=unsigned(width), depth=len(table), init=table)
+            m.submodules[name] = mem
+            port = mem.read_port()  # read latency: 1 cycle
+            m.d.comb += port.addr.eq(pl.at(index, index.stage))
             # and a register after it: a block RAM's clock-to-out is slow on ECP5
-            return pl.reg(name + "_q", lambda x: x, Staged(data, index.stage + 1))
+            return pl.reg(name + "_q", lambda x: x, Staged(port.data, index.stage + 1))
 
         phase = pl.comb("phase", lambda r, ph: Mux(r, PHASE_FIRST, ph), s["restart"], s["phase"])
 
@@ -273,6 +271,14 @@ class Castella(wiring.Component):
 
     # ------------------------------------------------------------------ top level
     def elaborate(self, platform):
+        return self._build()
+
+    def _build(self) -> Module:
+        if self._module is None:
+            self._module = self._top()
+        return self._module
+
+    def _top(self) -> Module:
         p = self._p
         m = Module()
         lay = state_layout(p)
@@ -287,9 +293,6 @@ class Castella(wiring.Component):
         sweeping = Signal(init=1)
         sweep_addr = Signal(p.tid_width)
 
-        out_bits = p.port_width("m_axis_tdata") + p.tid_width + p.port_width("m_axis_tuser")
-        m.submodules.ofifo = ofifo = fifo.SyncFIFOBuffered(width=out_bits, depth=self.fifo_depth)
-        credits = Signal(range(self.fifo_depth + 1))
         room = Signal(init=1)  # registered ``credits < fifo_depth``
 
         # Stage 0 (handshake) to stage 1 (state read data)
@@ -304,7 +307,11 @@ class Castella(wiring.Component):
             m.d.comb += word.eq(getattr(rd.data, name))
             stage1[name] = Staged(word, 1)
         write_stage, new, out, pl = self._datapath(m, stage1)
-        assert write_stage == self._write_stage, "the schedule must match the one the properties report"
+        self._write_stage = write_stage
+        fifo_depth = write_stage + 3
+        out_bits = p.port_width("m_axis_tdata") + p.tid_width + p.port_width("m_axis_tuser")
+        m.submodules.ofifo = ofifo = fifo.SyncFIFOBuffered(width=out_bits, depth=fifo_depth)
+        credits = Signal(range(fifo_depth + 1))
         valid = Staged(v1, 1)
         tid = Staged(tid1, 1)
         # Hazard: the measurement's track is still in flight (accepted, not yet written back).
@@ -359,9 +366,8 @@ class Castella(wiring.Component):
         # signals from the ports) only select among them.
         popped = self.m_axis_tvalid & self.m_axis_tready
         up, down = accept & ~popped, ~accept & popped
-        depth = self.fifo_depth
         m.d.sync += [
             credits.eq(Mux(up, credits + 1, Mux(down, credits - 1, credits))),
-            room.eq(Mux(up, credits < depth - 1, Mux(down, 1, credits < depth))),
+            room.eq(Mux(up, credits < fifo_depth - 1, Mux(down, 1, credits < fifo_depth))),
         ]
         return m

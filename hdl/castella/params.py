@@ -1,7 +1,7 @@
 """Parameters of the Castella tracker core, and every number format derived from them.
 
 One frozen dataclass feeds the Amaranth core (``kfgen.hdl.castella``), the bit-accurate
-golden model (``kfgen.sim.castella``), the manifest writer and the testbenches, so the
+golden model (``kfgen.sim.castella.model``), the manifest writer and the testbenches, so the
 hardware and its model cannot drift apart. This module is pure Python (no Amaranth).
 
 Number formats (``frac`` = fraction bits; a value is ``integer * 2**-frac``)
@@ -28,6 +28,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from ..describe import ParamError, check_name
+
 __all__ = ["CastellaParams", "ParamError", "Fmt"]
 
 #: Fraction bits and width of the normalised residual z and of the alpha_R constant.
@@ -44,14 +46,6 @@ QSLOPE_SHIFT = 16
 #: Largest q2 (m^2/s^3) and z2 (sigma, the integer range of the z format) accepted.
 Q2_MAX = 1e6
 Z_MAX = (1 << (Z_WIDTH - 1 - Z_FRAC)) - 1
-
-
-class ParamError(ValueError):
-    """A parameter outside what the datapath can honour. ``param`` names it."""
-
-    def __init__(self, param: str, message: str):
-        super().__init__(f"{param}: {message}")
-        self.param = param
 
 
 @dataclass(frozen=True)
@@ -173,8 +167,12 @@ class CastellaParams:
             raise ParamError("z1", f"must satisfy 0 < z1 < z2 <= {Z_MAX}, got z1={self.z1!r} z2={self.z2!r}")
         if self.z2_code - self.z1_code < 1:
             raise ParamError("z2", f"must exceed z1 by at least {2 ** -Z_FRAC}")
-        if not isinstance(self.name, str) or not self.name.isidentifier() or not self.name.isascii():
-            raise ParamError("name", f"must be a Verilog identifier ([A-Za-z_][A-Za-z0-9_]*), not {self.name!r}")
+        check_name(self.name)
+        # The datapath holds alpha, z1 and z2 as multiples of 2**-8: record the values built,
+        # so the header, the manifest and the models say what the hardware does, and every
+        # spelling of one core gives the same bytes.
+        for key, code in (("alpha", self.alpha_code), ("z1", self.z1_code), ("z2", self.z2_code)):
+            object.__setattr__(self, key, code / (1 << (ALPHA_FRAC if key == "alpha" else Z_FRAC)))
         # The covariance formats must resolve sigma_r^2.
         sr_code = self.sigma_r ** 2 * 2.0 ** self.p11_fmt.frac
         if sr_code < 16:
@@ -252,6 +250,18 @@ class CastellaParams:
         """P(1/1) of eq. (18): sigma_r^2, sigma_r^2/T, 2 sigma_r^2/T^2, saturated to the formats."""
         T, r2 = self.period, self.sigma_r ** 2
         return (self.p11_fmt.to_int(r2), self.p12_fmt.to_int(r2 / T), self.p22_fmt.to_int(2 * r2 / T ** 2))
+
+    @property
+    def built_constants(self) -> dict:
+        """The real constants the datapath multiplies by, as built (rounded to ``CONST_BITS``
+        significant bits or to the P11 format), for the manifest."""
+        def value(const):
+            mant, frac = const
+            return mant * 2.0 ** -frac
+
+        return {"period_s": value(self.t_const), "two_period_s": value(self.t2x_const),
+                "period_squared_s2": value(self.tsq_const), "inverse_period_hz": value(self.inv_t_const),
+                "sigma_r_squared_m2": self.sr2_code * 2.0 ** -self.p11_fmt.frac}
 
     @property
     def alpha_code(self) -> int:

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...describe import ParamError, check_name
 from .format import FLAG_NAMES, FloatFormat
 
-__all__ = ["FpuParams", "OPS", "FpuParamError"]
+__all__ = ["FpuParams", "OPS"]
 
 #: op -> (operand ports, result is an integer, has cycles_per_op)
 OPS = {
@@ -23,14 +24,6 @@ OPS = {
     "f2i": (("i_a",), True, False),
 }
 MAX_CYCLES_PER_OP = 64
-
-
-class FpuParamError(ValueError):
-    """A bad parameter; ``param`` names it."""
-
-    def __init__(self, param: str, message: str):
-        super().__init__(f"{param}: {message}")
-        self.param = param
 
 
 @dataclass(frozen=True)
@@ -63,33 +56,32 @@ class FpuParams:
 
     def __post_init__(self):
         if self.op not in OPS:
-            raise FpuParamError("op", f"must be one of {', '.join(OPS)}, not {self.op!r}")
+            raise ParamError("op", f"must be one of {', '.join(OPS)}, not {self.op!r}")
         try:
             FloatFormat.parse(self.format)
         except ValueError as exc:
-            raise FpuParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM "
+            raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM "
                                           f"(exponent 3..15 bits, fraction 2..64 bits): {exc}") from None
         if self.subnormals not in ("ieee", "ftz"):
-            raise FpuParamError("subnormals", f"must be ieee or ftz, not {self.subnormals!r}")
+            raise ParamError("subnormals", f"must be ieee or ftz, not {self.subnormals!r}")
         for key in ("stages", "cycles_per_op"):
             v = getattr(self, key)
             if (isinstance(v, bool) or not isinstance(v, int)) and not (key == "stages" and v is None):
-                raise FpuParamError(key, f"must be an integer, not {v!r}")
+                raise ParamError(key, f"must be an integer, not {v!r}")
         if self.stages is not None and self.stages < 1:
             # a core has a clock: at least its output is registered
-            raise FpuParamError("stages", f"must be at least 1 for a generated core, not {self.stages!r}")
+            raise ParamError("stages", f"must be at least 1 for a generated core, not {self.stages!r}")
         if not 1 <= self.cycles_per_op <= MAX_CYCLES_PER_OP:
-            raise FpuParamError("cycles_per_op", f"must be in 1..{MAX_CYCLES_PER_OP}, not {self.cycles_per_op!r}")
+            raise ParamError("cycles_per_op", f"must be in 1..{MAX_CYCLES_PER_OP}, not {self.cycles_per_op!r}")
         if self.cycles_per_op != 1 and not OPS[self.op][2]:
-            raise FpuParamError("cycles_per_op", f"applies to div and sqrt only; {self.op} takes one "
+            raise ParamError("cycles_per_op", f"applies to div and sqrt only; {self.op} takes one "
                                                  "operation per clock (leave it at 1)")
-        if not isinstance(self.name, str) or not self.name.isidentifier() or not self.name.isascii():
-            raise FpuParamError("name", f"must be a Verilog identifier ([A-Za-z_][A-Za-z0-9_]*), not {self.name!r}")
+        check_name(self.name)
         try:
             unit = self.build()
         except ValueError as exc:  # the unit's own check, e.g. a stage count it cannot place
             key = "cycles_per_op" if "cycles_per_op" in str(exc) else "stages"
-            raise FpuParamError(key, str(exc)) from None
+            raise ParamError(key, str(exc)) from None
         object.__setattr__(self, "stages", unit.stages)
 
     @property

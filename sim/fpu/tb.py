@@ -1,7 +1,7 @@
 """cocotb testbench for a group of generated floating-point units in one Verilator build.
 
 ``KFGEN_TB_GROUP`` names a JSON file: ``{"units": [{"prefix", "manifest", "stim", "out"}]}``.
-The simulated top (written by :func:`kfgen.sim.verilator.fpu_group_wrapper`) exposes each
+The simulated top (written by :func:`kfgen.sim.fpu.run.fpu_group_wrapper`) exposes each
 unit's ports as ``<prefix>_<port>``. Each stimulus ``.npz`` holds operand words ``a``
 (and ``b``, ``c``), expected ``y`` and ``flags``, a ``gap`` probability and a ``seed``.
 

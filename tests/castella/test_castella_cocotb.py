@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from kfgen.hdl.castella.params import CastellaParams
-from kfgen.sim import castella as model
-from kfgen.sim import scenarios
-from kfgen.sim.verilator import pack_fields, run_castella
+from kfgen.sim.castella import model
+from kfgen.sim.castella import scenarios
+from kfgen.sim.castella.run import run_castella
+from kfgen.sim.verilator import pack_fields
 
 from conftest import kfgen
 

@@ -14,7 +14,7 @@ import pytest
 
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.sim.float_ref import conversion_sweep, directed_corpus, random_operands, ref_op
-from kfgen.sim.verilator import run_fpu_group
+from kfgen.sim.fpu.run import run_fpu_group
 
 from conftest import kfgen
 

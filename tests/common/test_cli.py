@@ -7,7 +7,8 @@ import re
 import pytest
 
 from kfgen.gen import __version__
-from kfgen.gen.cli import CORES, option
+from kfgen.gen.cli import option
+from kfgen.gen.cores import discover
 from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import RANGES, CastellaParams
 
@@ -47,12 +48,18 @@ ERRORS = [
     ("q1-above-q2", ["castella", "--q1", "300"], "--q1"),
     ("name-digit", ["castella", "--name", "9lives"], "--name"),
     ("name-dash", ["castella", "--name", "my-core"], "--name"),
+    *[(f"name-{kw}", ["castella", "--name", kw], "--name")
+      for kw in ("module", "wire", "reg", "logic", "always_ff", "endmodule", "interface")],
+    ("name-port-clk", ["castella", "--name", "clk"], "--name"),
+    ("name-port-tdata", ["castella", "--name", "m_axis_tdata"], "--name"),
+    ("fpu-name-port", ["fpu", "--name", "o_flags"], "--name"),
+    ("fpu-name-keyword", ["fpu", "--name", "always_comb"], "--name"),
     ("unknown-option", ["castella", "--trakcs", "8"], "--trakcs"),
     ("unknown-option-eq", ["castella", "--colour=red"], "--colour"),
     ("abbreviation", ["castella", "--track", "8"], "--track"),
     ("stray-argument", ["castella", "eight"], "eight"),
     ("missing-value", ["castella", "--tracks"], "--tracks"),
-    ("unknown-core", ["ukf"], "CORE"),
+    ("unknown-core", ["kalman"], "CORE"),
     ("no-core", [], "CORE"),
     ("no-output", ["castella", "--tracks", "2"], "-o"),
 ]
@@ -61,7 +68,7 @@ ERRORS = [
 @pytest.mark.parametrize("case, args, param", ERRORS, ids=[e[0] for e in ERRORS])
 def test_bad_input(tmp_path, case, args, param):
     out = tmp_path / "out"
-    with_output = args[:1] == ["castella"] and case != "no-output"
+    with_output = args[:1] in (["castella"], ["fpu"]) and case != "no-output"
     _check_error(kfgen(*args, *(["-o", out] if with_output else []), check=False), param)
     assert not out.exists(), "a rejected command must write nothing"
 
@@ -117,6 +124,22 @@ def test_unwritable_output(tmp_path):
     assert blocker.read_text() == "not a directory"
 
 
+def test_failed_write_leaves_nothing(tmp_path):
+    """All or nothing: a file that cannot be written takes the others and the new directory
+    with it."""
+    from kfgen.gen.cli import UsageError, write_files
+
+    out = tmp_path / "new" / "dir"
+    with pytest.raises(UsageError, match="-o"):
+        write_files(out, {"a.v": "x", "missing/b.v": "y"})
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "keep").mkdir()
+    (tmp_path / "keep" / "old.v").write_text("old")
+    with pytest.raises(UsageError):
+        write_files(tmp_path / "keep", {"a.v": "x", "missing/b.v": "y"})
+    assert [f.name for f in (tmp_path / "keep").iterdir()] == ["old.v"]
+
+
 def test_version():
     proc = kfgen("--version")
     assert proc.stdout.strip() == f"kfgen {__version__}"
@@ -125,7 +148,7 @@ def test_version():
 
 def test_help_lists_every_parameter():
     top = kfgen("--help")
-    for name, core in CORES.items():
+    for name, core in discover().items():
         assert name in top.stdout
         text = " ".join(kfgen(name, "--help").stdout.split())  # undo line wrapping
         for f in dataclasses.fields(core.params):

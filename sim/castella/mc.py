@@ -1,11 +1,11 @@
 """The paper's 50-run Monte Carlo through the generated core in Verilator (for the plots).
 
-``python -m kfgen.sim.mc_verilator BUILD_DIR`` generates a 64-track core with the default
+``python -m kfgen.sim.castella.mc BUILD_DIR`` generates a 64-track core with the default
 parameters, streams all 50 runs of each scenario through it at once (one run per track,
 interleaved in random order, with random input gaps and output backpressure), checks every
 result word against the golden model, and writes ``BUILD_DIR/verilator_mc.npz`` with
 ``<scenario>_range`` and ``<scenario>_velocity`` code arrays (runs, steps) for
-``python -m kfgen.sim.plots --verilator``.
+``python -m kfgen.sim.castella.plots --verilator``.
 """
 
 from __future__ import annotations
@@ -19,10 +19,11 @@ import numpy as np
 
 from kfgen.hdl.castella.params import CastellaParams
 
-from . import castella as model
+from . import model
 from .plots import RUNS, SEED, monte_carlo
 from .scenarios import SCENARIOS, interleave
-from .verilator import pack_fields, run_castella
+from ..verilator import pack_fields
+from .run import run_castella
 
 TOP = "castella_mc"
 
@@ -57,7 +58,7 @@ def run(build_dir: Path, runs: int = RUNS, seed: int = SEED) -> dict:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.mc_verilator", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.castella.mc", description=__doc__.split("\n\n")[0])
     ap.add_argument("build_dir", type=Path)
     args = ap.parse_args(argv)
     args.build_dir.mkdir(parents=True, exist_ok=True)

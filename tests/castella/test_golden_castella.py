@@ -1,4 +1,4 @@
-"""Golden models of the Castella tracker (kfgen.sim.castella) and their scenarios.
+"""Golden models of the Castella tracker (kfgen.sim.castella.model) and their scenarios.
 
 The fixed-point model is what the core is proven against bit for bit, so here it is
 checked from the other side: against the paper's claims, against the float64 reference,
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from kfgen.hdl.castella.params import CastellaParams, Fmt
-from kfgen.sim import castella as model
-from kfgen.sim.scenarios import SCENARIOS, measure, to_codes, truth
+from kfgen.sim.castella import model
+from kfgen.sim.castella.scenarios import SCENARIOS, measure, to_codes, truth
 
 RUNS = 50
 SEED = 1980  # Castella's paper
@@ -516,7 +516,7 @@ def test_each_fixed_step_is_the_float_step_within_quantisation(p, name):
 
 # ---------------------------------------------------------------------------- figures
 def test_plots_monte_carlo_and_figures(paper_mc, tmp_path, capsys):
-    from kfgen.sim import plots
+    from kfgen.sim.castella import plots
 
     mc = plots.monte_carlo(PAPER, "scenario1", runs=RUNS, seed=SEED)
     mine = paper_mc["scenario1"]

@@ -1,4 +1,5 @@
-"""Unit tests of the Amaranth building blocks in Amaranth's own simulator, against the model."""
+"""The Castella datapath blocks (fixed-point helpers, pipeline scheduler, gain divider, LUT
+multipliers) and the whole core in Amaranth's own simulator, against the golden model."""
 
 
 import numpy as np
@@ -12,44 +13,10 @@ from kfgen.hdl.arith.multiply import shift_add_multiply
 from kfgen.hdl.arith.pipeline import Pipeline, Staged
 from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import CastellaParams, Fmt
-from kfgen.sim import castella as model
+from kfgen.sim.castella import model
 
+from conftest import run_comb, run_staged
 
-def run_comb(m, inputs, outputs, vectors):
-    """Drive ``vectors`` (tuples for ``inputs``) and collect ``outputs`` after settling."""
-    got = []
-
-    async def tb(ctx):
-        for vec in vectors:
-            for s, v in zip(inputs, vec):
-                ctx.set(s, v)
-            got.append(tuple(ctx.get(o) for o in outputs))
-
-    sim = Simulator(m)
-    sim.add_testbench(tb)
-    sim.run()
-    return got
-
-
-def run_staged(m, inputs, out, vectors):
-    """Drive ``vectors`` (tuples for ``inputs``) one a clock and collect the ``Staged`` value
-    ``out``, ``out.stage`` clocks later."""
-    got = []
-
-    async def tb(ctx):
-        for i in range(len(vectors) + out.stage):
-            if i < len(vectors):
-                for s, v in zip(inputs, vectors[i]):
-                    ctx.set(s, v)
-            if i >= out.stage:
-                got.append(ctx.get(out.sig))
-            await ctx.tick()
-
-    sim = Simulator(m)
-    sim.add_clock(1e-8)
-    sim.add_testbench(tb)
-    sim.run()
-    return got
 
 
 @pytest.mark.parametrize("shift", [-2, 0, 1, 3])
@@ -181,26 +148,3 @@ def test_shift_add_multiply_is_exact(const):
     vecs = [(x, y) for x in range(32) for y in (-256, -255, -1, 0, 1, 77, 255)]
     got = run_staged(m, (a, b), prod, vecs)
     assert got == [x * (y if const is None else const) for x, y in vecs]
-
-
-@pytest.mark.parametrize("wa,wb", [(2, 2), (3, 8), (8, 8), (11, 11), (17, 17), (18, 24), (24, 24),
-                                   (24, 48), (35, 20), (53, 53), (65, 65)])
-def test_float_partial_products_sum_to_the_product(wa, wb):
-    """The DSP-block/LUT-row split of the floating-point multipliers (binary16 11x11, binary32
-    24x24, binary64 53x53, fma's wider operands) adds up to ``a * b``: extremes and random."""
-    from types import SimpleNamespace
-
-    from kfgen.hdl.arith.float.mul import partial_products, sum_partial_products
-
-    m = Module()
-    a, b = Signal(wa), Signal(wb)
-    y = Signal(wa + wb)
-    m.d.comb += y.eq(sum_partial_products(SimpleNamespace(**partial_products(a, b)), wa + wb))
-    rng = np.random.default_rng(wa * 100 + wb)
-    top_a, top_b = (1 << wa) - 1, (1 << wb) - 1
-    vectors = [(0, 0), (top_a, top_b), (top_a, 1), (1, top_b), (1 << (wa - 1), 1 << (wb - 1))]
-    vectors += [(int(rng.integers(0, 1 << wa, dtype=np.uint64)) if wa < 64 else int.from_bytes(rng.bytes(9)) & top_a,
-                 int(rng.integers(0, 1 << wb, dtype=np.uint64)) if wb < 64 else int.from_bytes(rng.bytes(9)) & top_b)
-                for _ in range(200)]
-    got = run_comb(m, (a, b), (y,), vectors)
-    assert [g[0] for g in got] == [x * z for x, z in vectors]

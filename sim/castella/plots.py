@@ -10,7 +10,7 @@ differ only by the algorithm and its arithmetic.
 
 Usage::
 
-    python -m kfgen.sim.plots -o sim/figures [--verilator FILE.npz]
+    python -m kfgen.sim.castella.plots -o sim/castella/figures [--verilator FILE.npz]
 
 where ``FILE.npz`` holds, per scenario, ``<scenario>_range`` and ``<scenario>_velocity``
 integer code arrays of shape (runs, steps), as the core output them for the measurement
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from kfgen.hdl.castella.params import CastellaParams
-from kfgen.sim.castella import run_fixed, run_float
-from kfgen.sim.scenarios import SCENARIOS, Scenario, measure, to_codes, truth
+from .model import run_fixed, run_float
+from .scenarios import SCENARIOS, Scenario, measure, to_codes, truth
 
 __all__ = ["SEED", "RUNS", "monte_carlo", "rms_curves", "summary", "make_figures", "main"]
 
@@ -171,8 +171,8 @@ def _load_verilator(path) -> dict:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.plots", description=__doc__.split("\n\n")[0])
-    ap.add_argument("-o", "--outdir", default="sim/figures", help="directory for the PNGs")
+    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.castella.plots", description=__doc__.split("\n\n")[0])
+    ap.add_argument("-o", "--outdir", default="sim/castella/figures", help="directory for the PNGs")
     ap.add_argument("--verilator", metavar="FILE.npz",
                     help="core outputs: <scenario>_range and <scenario>_velocity code arrays (runs, steps)")
     args = ap.parse_args(argv)

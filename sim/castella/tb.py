@@ -1,4 +1,4 @@
-"""cocotb testbench of a generated Castella core (run under Verilator by :mod:`kfgen.sim.verilator`).
+"""cocotb testbench of a generated Castella core (run under Verilator by :mod:`kfgen.sim.castella.run`).
 
 It reads everything from files, so one build serves every stimulus:
 

