@@ -18,7 +18,7 @@ built with SoftFloat's RISC-V specialization (``test_softfloat_is_the_riscv_spec
 every NaN result is the canonical quiet NaN (no payload propagation, as in float_ref), 0 * inf
 + qNaN in fma is invalid, and f32_to_i32 saturates like RISC-V ``fcvt.w`` (NaN and +overflow to
 2**31 - 1, -overflow to -2**31, NV alone). Another specialization (8086-SSE propagates payloads
-and returns -2**31 for NaN) would make that test fail first.
+and returns -2**31 for NaN and +overflow) would make that test fail.
 
 f2i maps to ``fN_to_i32(x, NEAR_EVEN, exact=True)``: ``exact=True`` raises NX for an inexact
 conversion, as float_ref (and ``fcvt.w``) do; ``exact=False`` would suppress it.
