@@ -26,10 +26,10 @@ def pytest_collection_modifyitems(config, items):
         items[:] = keep
 
 
-def kfgen(*args, check=True):
+def kfgen(*args, check=True, env=None):
     """Run the installed ``kfgen`` command line; returns the CompletedProcess."""
     exe = Path(sys.executable).parent / "kfgen"
-    proc = subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True)
+    proc = subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, env=env)
     if check and proc.returncode != 0:
         raise AssertionError(f"kfgen {' '.join(map(str, args))} failed ({proc.returncode}): {proc.stderr}")
     return proc

@@ -1,5 +1,6 @@
 """The generated Verilog in third-party tools: Verilator lint, Icarus, Yosys for Xilinx and ECP5."""
 
+import os
 import re
 import subprocess
 
@@ -9,7 +10,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from kfgen.gen.verilog import emit, waivers
-from kfgen.sim.toolchain import ToolMissing, iverilog, run_verilator, yosys_cmd
+from kfgen.sim.toolchain import ToolMissing, iverilog, lint, yosys_cmd
 
 from conftest import kfgen
 
@@ -25,15 +26,34 @@ def rtl(request, tmp_path_factory):
     return out, top
 
 
-def _lint(vlt, verilog, top, *extra):
-    proc = run_verilator(["--lint-only", "-Wall", *extra, str(vlt), str(verilog), "--top-module", top])
-    return proc.returncode, [line for line in proc.stderr.splitlines() if line.startswith("%")]
-
-
 def test_verilator_lint(rtl):
     out, top = rtl
-    rc, messages = _lint(out / f"{top}.vlt", out / f"{top}.v", top)
+    rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
+
+
+def test_kfgen_lint_uses_the_pinned_verilator(rtl, tmp_path):
+    """`kfgen lint DIR/TOP`, the README's command, passes whatever `verilator` is first on PATH
+    (here one that always fails, as Debian's 5.006 does on our waivers)."""
+    out, top = rtl
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "verilator").write_text("#!/bin/sh\necho '%Error: Unknown Error Code: PROCASSINIT' >&2\nexit 1\n")
+    (fake / "verilator").chmod(0o755)
+    env_path = f"{fake}:{os.environ['PATH']}"
+    proc = kfgen("lint", out / top, check=False, env={**os.environ, "PATH": env_path})
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "clean (Verilator 5.048" in proc.stdout
+
+
+def test_kfgen_lint_reports_warnings(tmp_path):
+    text = emit(_Sloppy(), "sloppy", ["test"])
+    (tmp_path / "sloppy.v").write_text(text)
+    (tmp_path / "sloppy.vlt").write_text(waivers(text, "sloppy", ["test"]))
+    proc = kfgen("lint", tmp_path, check=False)
+    assert proc.returncode == 1 and "%Warning" in proc.stdout, proc.stdout
+    proc = kfgen("lint", tmp_path / "nothing", check=False)
+    assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: lint:")
 
 
 def test_waivers_are_targeted_and_explained(rtl):
@@ -76,7 +96,7 @@ def test_waivers_leave_design_warnings(tmp_path):
     (tmp_path / "sloppy.v").write_text(text)
     (tmp_path / "sloppy.vlt").write_text(waivers(text, "sloppy", ["test"]))
     # -Wno-fatal: Verilator would stop after the width pass, before the unused-signal one.
-    _, messages = _lint(tmp_path / "sloppy.vlt", tmp_path / "sloppy.v", "sloppy", "-Wno-fatal")
+    _, messages = lint(tmp_path / "sloppy.v", "-Wno-fatal")
     found = " ".join(messages)
     assert "Signal is not used: 'dead'" in found
     assert "Signal is not used: 'wasted'" in found
