@@ -16,7 +16,7 @@ FPU_OPS := add sub mul div sqrt fma i2f f2i
 all: verilog
 
 $(STAMP): pyproject.toml
-	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else "kfgen needs Python >= 3.10")'
+	@$(PYTHON) -c 'import sys; sys.version_info >= (3, 11) or sys.exit("kfgen needs Python >= 3.11 (the pinned numpy, scipy and matplotlib do), and $(PYTHON) is %d.%d.%d: run make PYTHON=python3.11 (or newer)" % sys.version_info[:3])'
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check --upgrade pip
 	$(PY) -m pip install -q --disable-pip-version-check -e '.[dev]'
