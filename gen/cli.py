@@ -134,13 +134,8 @@ def _build_parser() -> argparse.ArgumentParser:
 # ---------------------------------------------------------------------------- values
 
 def _read_config(path: str, fields: Mapping) -> dict:
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ImportError:
-            raise UsageError("--config", "reading TOML needs Python 3.11 or the `tomli` package") from None
+    import tomllib
+
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
