@@ -79,13 +79,17 @@ def run_test(runner, test_module: str, top: str, build_dir: Path, name: str, env
 
     build_dir = Path(build_dir)
     log = build_dir / f"{name}.log"
-    results = runner.test(test_module=test_module, hdl_toplevel=top, build_dir=build_dir,
-                          test_dir=build_dir, extra_env=env, results_xml=str(build_dir / f"{name}_results.xml"),
-                          waves=waves, log_file=log)
+    results = build_dir / f"{name}_results.xml"
+    exit_code = 0
+    try:
+        runner.test(test_module=test_module, hdl_toplevel=top, build_dir=build_dir, test_dir=build_dir,
+                    extra_env=env, results_xml=str(results), waves=waves, log_file=log)
+    except SystemExit as e:  # under pytest the runner exits on a failure; the log says why
+        exit_code = e.code
     if waves and (build_dir / "dump.fst").exists():
         (build_dir / "dump.fst").replace(build_dir / f"{name}.fst")
     total, failed = get_results(Path(results))
-    if failed or total == 0:
+    if failed or total == 0 or exit_code:
         text = log.read_text(errors="replace")
         tail = "\n".join(line for line in text.splitlines() if "Error" in line or "assert" in line.lower()
                          or "result" in line)[-6000:]

@@ -6,11 +6,14 @@ It reads everything from files, so one build serves every stimulus:
 * ``KFGEN_TB_STIM``: an ``.npz`` with ``tid``, ``tdata``, ``tuser`` input words, the
   probabilities ``gap`` (an idle input cycle) and ``stall`` (``m_axis_tready`` low),
   ``seed``, and optionally ``expect_tdata``, ``expect_tid``, ``expect_tuser``.
-* ``KFGEN_TB_OUT``: where the collected output words and handshake cycles are written.
+* ``KFGEN_TB_OUT``: where the collected output words and handshake cycles are written, and
+  how many cycles each stream's valid waited for ready (``m_axis_waits``, ``s_axis_waits``).
 
 One coroutine does the whole cycle: at the falling edge it drives both streams, in the
-read-only phase it samples both handshakes, so the two AXI4-Stream rules (transfer when
-valid and ready at a rising edge; valid holds until then) are checked without races.
+read-only phase it samples both handshakes (a transfer is valid and ready at the rising edge)
+without races. There too a :class:`~kfgen.sim.streams.StreamChecker` holds the core's
+``m_axis`` to the AXI4-Stream rules (valid, once high, and the payload hold until the
+transfer), and the testbench's own ``s_axis`` driving as a self-check.
 Every output word is compared with the golden model's as it arrives.
 """
 
@@ -23,6 +26,8 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import FallingEdge, ReadOnly
+
+from ..streams import StreamChecker
 
 
 def _field_text(manifest, port, word):
@@ -54,6 +59,7 @@ async def stream(dut):
         await FallingEdge(dut.clk)
     dut.rst.value = 0
 
+    streams = [StreamChecker.axis(dut, "m_axis"), StreamChecker.axis(dut, "s_axis")]
     got = {"tdata": [], "tid": [], "tuser": []}
     in_cycle, out_cycle = [], []
     sent, cycle, idle_limit = 0, 0, 2000 + 200 * n
@@ -74,6 +80,8 @@ async def stream(dut):
         ready_out = rng.random() >= stall
         dut.m_axis_tready.value = int(ready_out)
         await ReadOnly()
+        for checker in streams:
+            checker.sample(cycle)
         if valid and dut.s_axis_tready.value:
             in_cycle.append(cycle)
             sent += 1
@@ -93,16 +101,19 @@ async def stream(dut):
                     f"{_field_text(manifest, 'm_axis_tuser', int(expect['tuser'][i]))}")
     # A further few cycles: nothing more may come out.
     extra = 0
-    for _ in range(manifest["latency_cycles"] + 4):
+    for k in range(manifest["latency_cycles"] + 4):
         await FallingEdge(dut.clk)
         dut.s_axis_tvalid.value = 0
         dut.m_axis_tready.value = 1
         await ReadOnly()
+        for checker in streams:
+            checker.sample(cycle + 1 + k)
         extra += int(dut.m_axis_tvalid.value)
 
     np.savez(os.environ["KFGEN_TB_OUT"], tdata=np.array(got["tdata"], dtype=object),
              tid=np.array(got["tid"]), tuser=np.array(got["tuser"]),
-             in_cycle=np.array(in_cycle), out_cycle=np.array(out_cycle), cycles=cycle)
+             in_cycle=np.array(in_cycle), out_cycle=np.array(out_cycle), cycles=cycle,
+             **{f"{c.name}_waits": c.waits for c in streams})
     assert extra == 0, f"{extra} results beyond the {n} inputs"
     assert not mismatches, f"{len(mismatches)} of {n} results differ from the golden model:\n" + \
         "\n".join(mismatches[:20])

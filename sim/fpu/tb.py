@@ -10,6 +10,11 @@ when the previous one was accepted, i.e. ``i_valid & i_ready`` for iterative uni
 during a random gap), handshakes and results sampled in the read-only phase. Each result
 must arrive exactly ``latency_cycles`` after its operation was accepted, in order, and
 equal the exact reference bit for bit and flag for flag.
+
+Of the stream rules only the transmitter's apply, and only to the inputs of iterative units:
+the testbench holds ``i_valid`` and the operands while ``i_ready`` is low, which a
+:class:`~kfgen.sim.streams.StreamChecker` checks as a self-check. The results have no ready
+(``o_valid`` is a one-cycle strobe the receiver must take), so nothing there has to hold.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import FallingEdge, ReadOnly
+
+from ..streams import StreamChecker
 
 _FLAGS = ("NX", "UF", "OF", "DZ", "NV")
 
@@ -42,6 +49,9 @@ class _Unit:
         self.latency = self.manifest["latency_cycles"]
         self.sig = {name: getattr(dut, f"{self.prefix}_{name}") for name in ports if name not in ("clk", "rst")}
         self.has_ready = "i_ready" in ports
+        self.stream = StreamChecker(f"{self.prefix}_i", self.sig["i_valid"], self.sig["i_ready"],
+                                    {f"i_{k}": self.sig[f"i_{k}"] for k in self.operands}) \
+            if self.has_ready else None
         self.sent = 0
         self.valid = False
         self.accepted_at: list[int] = []
@@ -56,6 +66,8 @@ class _Unit:
         self.sig["i_valid"].value = int(self.valid)
 
     def sample(self, cycle):
+        if self.stream:
+            self.stream.sample(cycle)
         if self.valid and (not self.has_ready or self.sig["i_ready"].value):
             self.accepted_at.append(cycle)
             self.sent += 1

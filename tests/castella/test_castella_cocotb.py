@@ -2,6 +2,7 @@
 
 import json
 import os
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -75,6 +76,24 @@ def run_checked(out, params, manifest, tids, ys, rs, **kw):
     return res, cols
 
 
+def check_sustained_rate(man, tracks, in_cycle):
+    """The accepts of a run offered back to back, whole rounds of ``tracks`` in round robin,
+    against the manifest's ``sustained_measurements_per_cycle``, s = min(1, tracks / TI)
+    (TI = ``track_interval_cycles``).
+
+    Such a run goes in rounds: every track once on consecutive cycles, the next round TI
+    cycles after the last (at once if tracks >= TI). From the first accept to the last, over
+    L cycles, the n accepts are s * L plus the head start of the first round, which nothing
+    before it paid for: n = s * L + tracks * (1 - s) exactly, so n / L tends to s from above
+    (n = L when s = 1)."""
+    ti = man["track_interval_cycles"]
+    s = Fraction(min(tracks, ti), ti)
+    assert man["sustained_measurements_per_cycle"] == round(float(s), 6)
+    n, span = len(in_cycle), int(in_cycle[-1] - in_cycle[0]) + 1
+    assert n % tracks == 0
+    assert n == s * span + tracks * (1 - s), (n, span, float(s))
+
+
 def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     out, p, man = core("castella")
     codes = scenario_codes(p, 1, seed=11)  # scenario 1 then scenario 2 on the same track
@@ -84,13 +103,16 @@ def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     rs[[0, 60, steps]] = True  # a restart mid-scenario and one at the second scenario
     tids = np.zeros(ys.size, dtype=np.int64)
     res, cols = run_checked(out, p, man, tids, ys, rs, gap=0.3, stall=0.3, seed=3, name="gaps")
+    # the protocol checker saw results wait for ready (and found them held)
+    assert res["m_axis_waits"] > 0
     # the scenarios exercise every phase, the manoeuvre bit and the q line
     assert set(cols["phase"]) == {0, 1, 2}
     assert cols["manoeuvre"].any() and cols["q"].max() == p.q_max
 
 
 def test_single_track_cycle_counts(core):
-    """With no gaps and output always ready: exact latency, and one track every track_interval."""
+    """With no gaps and output always ready: exact latency, and one track every track_interval,
+    which with one track is the manifest's initiation interval and sustained rate."""
     out, p, man = core("castella")
     codes = scenario_codes(p, 1, seed=12, which=("scenario1",))[:, :60]
     ys = codes.reshape(-1)
@@ -99,6 +121,8 @@ def test_single_track_cycle_counts(core):
     res, _ = run_checked(out, p, man, np.zeros(ys.size, dtype=np.int64), ys, rs, name="timing")
     assert np.all(res["out_cycle"] - res["in_cycle"] == man["latency_cycles"])
     assert np.all(np.diff(res["in_cycle"]) == man["track_interval_cycles"])
+    assert man["initiation_interval"] == man["track_interval_cycles"]
+    check_sustained_rate(man, p.tracks, res["in_cycle"])
 
 
 def test_eight_tracks_random_order(core):
@@ -119,6 +143,9 @@ def test_eight_tracks_round_robin_timing(core):
     # fewer tracks than the pipeline holds: each track waits exactly track_interval
     per_track = [np.diff(res["in_cycle"][tids == t]) for t in range(8)]
     assert all(np.all(d == man["track_interval_cycles"]) for d in per_track)
+    # measurements of different tracks are taken back to back: the manifest's II of 1
+    assert man["initiation_interval"] == 1 and np.diff(res["in_cycle"]).min() == 1
+    check_sustained_rate(man, p.tracks, res["in_cycle"])
 
 
 def test_one_measurement_per_clock(core):
@@ -130,6 +157,8 @@ def test_one_measurement_per_clock(core):
     res, _ = run_checked(out, p, man, tids, ys, rs, name="rate")
     assert np.all(np.diff(res["in_cycle"]) == 1)
     assert np.all(np.diff(res["out_cycle"]) == 1)
+    assert man["initiation_interval"] == 1
+    check_sustained_rate(man, p.tracks, res["in_cycle"])
 
 
 def test_many_tracks_random_order(core):
