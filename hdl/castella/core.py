@@ -1,3 +1,7 @@
+# amaranth: UnusedElaboratable=no
+# (The core builds its module once, on first need: asking only for its latency or track
+# interval, as the manifest and tests do, builds a module nobody elaborates. This is
+# Amaranth's public linter option for that; it covers only what this file creates.)
 """The Castella adaptive two-state tracker (Zaghar et al.), many tracks time-multiplexed.
 
 The datapath follows the paper's units: U0 initial values (eqs. 17, 18), U1 prediction and
