@@ -100,28 +100,10 @@ RANGES = {
 class CastellaParams:
     """Generation parameters of the Castella adaptive tracker.
 
-    Parameters
-    ----------
-    tracks : int
-        Number of independent tracks held in state memory (1..4096).
-    data_width : int
-        Width of range, velocity and covariance words in bits (16..24).
-    gain_width : int
-        Width of the Kalman gains K1, K2 in bits (6..12).
-    q_width : int
-        Width of the q code (2..8): 2**q_width levels on the line from q1 to q2.
-    period : float
-        Measurement period T of each track in seconds.
-    sigma_r : float
-        Standard deviation of the range measurement noise in metres.
-    alpha : float
-        Single-pole residual filter constant alpha_R, in (0, 1).
-    q1, q2 : float
-        Manoeuvre noise spectral density (m^2/s^3) below z1 and above z2; 0 < q1 < q2.
-    z1, z2 : float
-        Thresholds of the filtered normalised residual; 0 < z1 < z2 < 8.
-    name : str
-        Top-level module name; every generated module is prefixed by it.
+    What each parameter means, its unit and the values it takes are written once, in
+    ``RANGES`` and :mod:`kfgen.hdl.castella.descriptor` (which ``kfgen castella --help``
+    prints). The constructor validates every value and raises :class:`ParamError`; alpha,
+    z1 and z2 are then replaced by the values the datapath holds (multiples of 2**-8).
     """
 
     tracks: int = 1
