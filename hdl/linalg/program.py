@@ -5,11 +5,11 @@ Pure Python (no Amaranth import). An operation is one of
 
 * :class:`Dot`: ``acc = init; acc = fma(+-a_k, b_k, acc)`` for the terms in their listed order,
   each FMA rounded once. The listed order is part of the program, so every schedule of it and
-  the golden model give the same bits. With no terms it is a copy of ``init``; without
-  ``init`` the accumulation starts from ``-0`` (the neutral addend: ``x + -0 = x`` for
+  the golden model give the same bits. Without ``init`` the accumulation starts from ``-0`` (the neutral addend: ``x + -0 = x`` for
   every ``x``, zeros included). Negating a product costs nothing in hardware (a sign bit).
 * :class:`Div` ``a / b`` and :class:`Sqrt` ``sqrt(a)``, on the one shared divider and
-  square root.
+  square root;
+* :class:`Copy` ``dst = src``, the word unchanged, on the memory's move unit (no PE).
 
 The program's order is its meaning: an operation reads what earlier operations wrote (the
 scheduler keeps read-after-write, write-after-read and write-after-write order). ``check``
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Program", "CHECKS"]
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Program", "CHECKS"]
 
 CHECKS = (None, "pivot", "finite")
 
@@ -118,8 +118,8 @@ class Dot:
         object.__setattr__(self, "dst", _dst(dst))
         object.__setattr__(self, "init", None if init is None else _addr(init, "init"))
         ts = tuple((_addr(a, "a"), _addr(b, "b"), bool(neg)) for a, b, neg in terms)
-        if not ts and init is None:
-            raise ValueError("a Dot needs an init or at least one term (copy a zero constant instead)")
+        if not ts:
+            raise ValueError("a Dot needs at least one term (a copy is a Copy)")
         object.__setattr__(self, "terms", ts)
         object.__setattr__(self, "check", _check(check))
 
@@ -179,6 +179,28 @@ class Sqrt:
         return "sqrt"
 
 
+@dataclass(frozen=True)
+class Copy:
+    """``dst = src``, bit for bit, on the move unit."""
+
+    dst: tuple[int, ...]
+    src: int
+    check: str | None = None
+
+    def __init__(self, dst, src, check=None):
+        object.__setattr__(self, "dst", _dst(dst))
+        object.__setattr__(self, "src", _addr(src, "src"))
+        object.__setattr__(self, "check", _check(check))
+
+    @property
+    def reads(self):
+        return (self.src,)
+
+    @property
+    def unit(self) -> str:
+        return "copy"
+
+
 @dataclass
 class Program:
     """One step: its operations in program order, on ``layout``'s memory, in format ``fmt``."""
@@ -200,7 +222,7 @@ class Program:
 
     @property
     def fma_count(self) -> int:
-        """Multiply-adds (copies count none)."""
+        """Multiply-adds."""
         return sum(len(op.terms) for op in self.ops if isinstance(op, Dot))
 
     def count(self, unit: str) -> int:

@@ -10,10 +10,12 @@ Unscented Kalman Filter"). Structure known at generation is used instead of comp
   recombination L1 = L2 sqrt(D) (22) is folded into sigma's rows (g_j = s_j c_j,
   e_j = s_j d_j, s_j = sqrt(D_j)), and chi = x^a + L1 sigma (8) is built from the suffix sums
   T_rk = x^a_r + sum_{j=k..r} L_rj g_j, each point one multiply-add: M^2 instead of M^3/6;
-* the weights take two values, W0 for point 0 and W1 for the rest (5); point 0 is skipped
-  when W0 = 0. Covariances (11), (14), (15) are sums of products of scaled residuals
-  y_ik = sqrt(W_k) (chi_ik - mean_i) (25)-(28), so P and S come out symmetric by
-  construction: one triangle is computed, P's mirrored on write-back;
+* the weights take two values, W0 for point 0 and W1 for the rest (5), and sum to 1: the
+  means (10), (13) are point 0 plus W1 times the sum of the differences d_k = pt_k - pt_0,
+  and the covariances (11), (14), (15) are taken about point 0 and corrected by the mean's
+  offset (the shifted sums, see ``covariance``), so the long accumulations of the
+  covariance do not wait for the mean's. One triangle of P and S is computed, P's mirrored
+  on write-back;
 * K = Pxz S^-1 (16) is the right divide K L D L^T = Pxz: forward substitution, a division by
   D, back substitution, row by row of K.
 
@@ -29,7 +31,7 @@ from math import isqrt
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.sim.float_ref import round_to_format
 
-from .program import Div, Dot, Layout, Program, Sqrt
+from .program import Copy, Div, Dot, Layout, Program, Sqrt
 
 __all__ = ["UkfSizes", "UkfPrograms", "build_ukf", "simplex_rows"]
 
@@ -110,7 +112,6 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     n, nw, nv, m = sizes.n, sizes.nw, sizes.nv, sizes.m
     M, N = sizes.M, sizes.N
     W1, c, d = simplex_rows(M, w0)
-    W0 = Fraction(w0)
     lay = Layout()
     # The processor's buffer (names fixed by the issue), then work, then constants.
     x = lay.add("x", n, 1, "bus")
@@ -131,10 +132,13 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     e = lay.add("e", M)
     T = lay.add("T", len(tri))  # suffix sums T_rk, k < r (T_rr has its own word in "Tr")
     Tr = lay.add("Tr", M)
-    yx = lay.add("yx", n, N)  # scaled predict residuals, kept for Pxz in update
-    r = lay.add("r", max(n, m), N)  # unscaled residuals (predict, then update)
-    zh = lay.add("zhat", m)
-    yz = lay.add("yz", m, N)
+    dx = lay.add("dx", n, N - 1)  # predict's differences from point 0, kept for Pxz
+    dlx = lay.add("delta_x", n)
+    Gx = lay.add("Gx", n, n)
+    dz = lay.add("dz", m, N - 1)
+    dlz = lay.add("delta_z", m)
+    Gs = lay.add("Gs", m, m)
+    Gxz = lay.add("Gxz", n, m)
     S = lay.add("S", m, m)
     FS = lay.add("FS", m, m)  # F of S's LDL^T below the diagonal (23)
     LS = lay.add("LS", m, m)
@@ -145,13 +149,9 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     K = lay.add("K", n, m)
     inn = lay.add("innov", m)
     one = lay.const("one", [_word(fmt, Fraction(1))])(0, 0)
-    wts = lay.const("weights", [_word(fmt, W0), _word(fmt, W1),
-                                _word(fmt, _sqrt(W0)), _word(fmt, _sqrt(W1))])
+    w1 = lay.const("w1", [_word(fmt, W1)])(0, 0)
     sig_c = lay.const("sigma_c", [_word(fmt, v) for v in c])
     sig_d = lay.const("sigma_d", [_word(fmt, v) for v in d])
-    W = lambda k: wts(0, 0 if k == 0 else 1)  # noqa: E731
-    SW = lambda k: wts(0, 2 if k == 0 else 3)  # noqa: E731
-    points = range(1 if w0 == 0 else 0, N)  # W0 = 0: point 0 has no weight
     ti = {ij: t for t, ij in enumerate(tri)}
 
     def A(i, j):  # P^a's lower triangle, block by block (4)
@@ -173,7 +173,11 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
             for i in range(j + 1, nb):
                 fa[i, j] = a(i, j) if j == 0 else f(i, j)
         for j in range(nb):
-            prog.emit(Dot(dd(j), a(j, j), [(la[j, k], fa[j, k], True) for k in range(j)], "pivot"))
+            if j == 0:
+                prog.emit(Copy(dd(j), a(j, j), "pivot"))
+            else:
+                prog.emit(Dot(dd(j), a(j, j), [(la[j, k], fa[j, k], True) for k in range(j)],
+                              "pivot"))
             for i in range(j + 1, nb):
                 if j:
                     prog.emit(Dot(fa[i, j], a(i, j), [(la[i, k], fa[j, k], True) for k in range(j)]))
@@ -218,39 +222,45 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
                 if term is not None:
                     sg.emit(Dot(chi(i, rr), src, [term]))
                 elif src is not None and src != chi(i, rr):
-                    sg.emit(Dot(chi(i, rr), src))
+                    sg.emit(Copy(chi(i, rr), src))
                 # src None: a noise row beyond sigma's nonzeros, zero since reset (the bus
                 # cannot write sigma_points, and nothing else writes these words)
 
     # ---- predict -------------------------------------------------------------------------
     pr = Program("predict", lay, fmt)
 
-    def moments(prog, pts, dim, mean, res, y):
-        """Mean (10)/(13) and scaled residuals (27): y_ik = sqrt(W_k) (pt_k[i] - mean_i)."""
+    def moments(prog, pts, dim, dd, delta):
+        """Differences from point 0, d_ik = pt_k[i] - pt_0[i], and the mean's offset from
+        point 0, delta_i = W1 sum_k d_ik (10)/(13) with sum W = 1; d_i0 = 0."""
         for i in range(dim):
-            prog.emit(Dot(mean(i), None, [(W(k), pts(k, i), False) for k in points]))
+            for k in range(1, N):
+                prog.emit(Dot(dd(i, k - 1), pts(k, i), [(one, pts(0, i), True)]))
         for i in range(dim):
-            for k in points:
-                prog.emit(Dot(res(i, k), pts(k, i), [(one, mean(i), True)]))
-                prog.emit(Dot(y(i, k), None, [(SW(k), res(i, k), False)]))
+            prog.emit(Dot(delta(i), None, [(w1, dd(i, k), False) for k in range(N - 1)]))
 
-    moments(pr, chif, n, x, r, yx)
-    for i in range(n):  # (11) by (28), the lower triangle mirrored
-        for j in range(i + 1):
-            dst = (P(i, j),) if i == j else (P(i, j), P(j, i))
-            pr.emit(Dot(dst, None, [(yx(i, k), yx(j, k), False) for k in points], "finite"))
+    def covariance(prog, da, dela, ra, db, delb, rb, G, dst, lower, check=None):
+        """(11), (14), (15) by (27)-(28) about point 0 instead of the mean (the shifted sums):
+        sum_k W_k (a_k - a^)(b_k - b^)^T = W1 sum_k da_k db_k^T - dela delb^T. The residuals
+        and the mean's chain then run side by side instead of one after the other."""
+        for i in range(ra):
+            for j in range(i + 1 if lower else rb):
+                prog.emit(Dot(G(i, j), None, [(da(i, k), db(j, k), False) for k in range(N - 1)]))
+                prog.emit(Dot(dst(i, j), None, [(dela(i), delb(j), True), (w1, G(i, j), False)],
+                              check))
+
+    moments(pr, chif, n, dx, dlx)
+    for i in range(n):  # x^- = chi_0 + delta (10)
+        pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
+    covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
+               lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
 
     # ---- update --------------------------------------------------------------------------
     up = Program("update", lay, fmt)
-    moments(up, chih, m, zh, r, yz)
-    for i in range(m):  # S (14), lower triangle
-        for j in range(i + 1):
-            up.emit(Dot(S(i, j), None, [(yz(i, k), yz(j, k), False) for k in points]))
-    for i in range(n):  # Pxz (15)
-        for j in range(m):
-            up.emit(Dot(Pxz(i, j), None, [(yx(i, k), yz(j, k), False) for k in points]))
+    moments(up, chih, m, dz, dlz)
+    covariance(up, dz, dlz, m, dz, dlz, m, Gs, S, True)  # S (14), lower triangle
+    covariance(up, dx, dlx, n, dz, dlz, m, Gxz, Pxz, False)  # Pxz (15)
     for i in range(m):
-        up.emit(Dot(inn(i), z(i), [(one, zh(i), True)]))
+        up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
     _, ls = ldl(up, m, S, FS, LS, DS)
     for p in range(n):  # K L D L^T = Pxz (16), one row of K at a time
         y = {0: Pxz(p, 0)}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfgen.hdl.linalg.program import Div, Dot, Program, Sqrt
+from kfgen.hdl.linalg.program import Copy, Div, Dot, Program, Sqrt
 from kfgen.sim.float_ref import ref_op
 
 __all__ = ["Status", "run", "to_words", "from_words"]
@@ -47,6 +47,8 @@ def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
         elif isinstance(op, Sqrt):
             acc, fl = ref_op("sqrt", fmt, mem[op.a], None, None, subnormals)
             st.flags |= fl
+        elif isinstance(op, Copy):
+            acc = mem[op.src]
         else:
             raise TypeError(f"unknown operation {op!r}")
         special = acc & exp_all == exp_all  # NaN or infinity
