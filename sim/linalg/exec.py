@@ -62,12 +62,21 @@ def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
 
 
 def to_words(fmt, values) -> list[int]:
-    """Float64 values rounded once to ``fmt``'s words."""
+    """Float64 values rounded once to ``fmt``'s words (NaN: the canonical NaN)."""
+    import math
     from fractions import Fraction
 
     from kfgen.sim.float_ref import round_to_format
-    return [round_to_format(fmt, int(v < 0 or (v == 0 and str(v).startswith("-"))),
-                            abs(Fraction(float(v))))[0] for v in values]
+    out = []
+    for v in map(float, values):
+        sign = int(math.copysign(1.0, v) < 0)
+        if math.isnan(v):
+            out.append(fmt.canonical_nan)
+        elif math.isinf(v):
+            out.append(fmt.inf(sign))
+        else:
+            out.append(round_to_format(fmt, sign, abs(Fraction(v)))[0])
+    return out
 
 
 def from_words(fmt, words) -> list[float]:
