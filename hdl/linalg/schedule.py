@@ -31,7 +31,7 @@ import heapq
 from collections import defaultdict
 from dataclasses import dataclass, field
 
-from .program import Dot, Program
+from .program import Program
 
 __all__ = ["Machine", "Placement", "Schedule", "schedule"]
 
@@ -185,7 +185,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
     heap = [(-prio[i], i) for i in range(nops) if npred[i] == 0]
     heapq.heapify(heap)
 
-    def ports_free(rd, wr, t):
+    def ports_free(rd, wr, t, woff):
         if unlimited:
             return True
         want = defaultdict(set)
@@ -198,7 +198,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
         wcount = defaultdict(int)
         for a in wr:
             wcount[a % mc.banks] += 1
-        w = t + shapes_w
+        w = t + woff
         for bank, k in wcount.items():
             if len(port_reads.get((bank, w), ())) + port_writes.get((bank, w), 0) + k > mc.ports:
                 return False
@@ -215,7 +215,6 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                 t = max(t, ready[a] - off)
         for a in op.dst:
             t = max(t, read_last[a] + 1 - woff, write_last[a] + 1 - woff)
-        shapes_w = woff
         if unlimited:
             pe = 0
         else:
@@ -229,7 +228,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                 else:
                     pe = 0
                     ok = (op.unit, t) not in unit_busy
-                if ok and ports_free(rd, op.dst, t):
+                if ok and ports_free(rd, op.dst, t, woff):
                     break
                 t += 1
             if op.unit == "fma":
