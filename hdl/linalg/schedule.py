@@ -1,0 +1,258 @@
+"""List scheduler: a step program onto P processing elements, one divider, one square root
+and a banked operand memory, cycle for cycle as the hardware will run it.
+
+The machine (:class:`Machine`):
+
+* A PE is an FMA of latency ``Lf`` whose output feeds back to its addend input, so it
+  interleaves up to ``Lf`` accumulations: an accumulation of K terms issued on a PE at cycle
+  ``t`` issues its terms at ``t, t + Lf, ..., t + (K - 1) Lf`` (exactly ``Lf`` apart: the
+  previous result meets the next product with no FIFO), one issue per PE per cycle. ``init``
+  (else the addend is ``-0``) is read one cycle before the first issue, on the PE's third
+  read lane, so that no cycle of one accumulation needs more than two reads.
+* One divider and one square root, pipelined: one issue each per cycle; one move unit for
+  copies (read a word, write it back; latency 0 beyond the read).
+* Reads happen at issue and take ``read_latency`` cycles (a synchronous RAM); a result is
+  written ``read_latency + L`` cycles after its (last) issue and may be read from the next
+  cycle (no bypass). A mirrored result is written to both addresses in that cycle.
+* The operand memory has ``banks`` banks, word ``a`` in bank ``a % banks``, each with
+  ``ports`` ports per cycle (a dual-port RAM: 2), each port one read or one write; the
+  same word read by several units in a cycle takes one port (a broadcast).
+
+Operations are placed one at a time, most critical first (longest latency path to the end
+of the step), each at the earliest cycle where its operands are ready, the words it
+overwrites have been read (and written) by every earlier operation, and its PE slots and
+bank ports are free. ``pes=None`` gives the dependency-chain bound: unlimited PEs, dividers
+and ports, the same latencies.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+from .program import Program
+
+__all__ = ["Machine", "Placement", "Schedule", "schedule"]
+
+
+@dataclass(frozen=True)
+class Machine:
+    """The engine's timing. ``pes=None``: unlimited resources (the chain bound)."""
+
+    pes: int | None
+    fma_latency: int
+    div_latency: int
+    sqrt_latency: int
+    banks: int | None = None  # None: 2 * pes + 2
+    ports: int = 2
+    read_latency: int = 1
+
+    def __post_init__(self):
+        if self.pes is not None and (isinstance(self.pes, bool) or not isinstance(self.pes, int)
+                                     or self.pes < 1):
+            raise ValueError(f"pes must be a positive integer or None, not {self.pes!r}")
+        for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k != "read_latency" else 0):
+                raise ValueError(f"{k} must be a positive integer, not {v!r}")
+        if self.banks is None and self.pes is not None:
+            object.__setattr__(self, "banks", 2 * self.pes + 2)
+
+    def latency(self, unit: str) -> int:
+        return {"fma": self.fma_latency, "div": self.div_latency, "sqrt": self.sqrt_latency,
+                "copy": 0}[unit]
+
+    def unlimited(self) -> Machine:
+        return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
+                       None, self.ports, self.read_latency)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one operation runs: ``unit`` (``fma``/``div``/``sqrt``), PE index (fma), first
+    issue cycle, and the cycle its result is written."""
+
+    op: int
+    unit: str
+    pe: int
+    start: int
+    write: int
+
+
+@dataclass
+class Schedule:
+    program: Program
+    machine: Machine
+    placements: list[Placement] = field(default_factory=list)  # in program order
+
+    @property
+    def cycles(self) -> int:
+        """The step's exact length: from the first issue to the last write, inclusive."""
+        return max(p.write for p in self.placements) + 1 if self.placements else 0
+
+    def issues(self):
+        """Per-cycle issue information: ``{cycle: [(unit, pe, op, term), ...]}``; ``term`` is
+        the term index (0 for the first issue, a division, a square root or a copy)."""
+        out = defaultdict(list)
+        lf = self.machine.fma_latency
+        for p in self.placements:
+            op = self.program.ops[p.op]
+            for k in range(len(op.terms) if p.unit == "fma" else 1):
+                out[p.start + k * lf].append((p.unit, p.pe, p.op, k))
+        return dict(sorted(out.items()))
+
+    def reads(self, p: Placement):
+        """``(cycle, address)`` of every read of placement ``p``."""
+        op = self.program.ops[p.op]
+        if p.unit != "fma":
+            return [(p.start, a) for a in op.reads]
+        lf = self.machine.fma_latency
+        return [(p.start + off, a) for off, a in _reads_at(op, self.machine)]
+
+
+def _shape(op, mc: Machine):
+    """(issue offsets, write offset from the first issue)."""
+    if op.unit == "fma":
+        offs = [i * mc.fma_latency for i in range(len(op.terms))]
+        return offs, offs[-1] + mc.read_latency + mc.fma_latency
+    return [0], mc.read_latency + mc.latency(op.unit)
+
+
+def _reads_at(op, mc: Machine):
+    """[(offset, address)] of the reads, relative to the first issue."""
+    if op.unit != "fma":
+        return [(0, a) for a in op.reads]
+    r = [] if op.init is None else [(-1, op.init)]
+    for k, (a, b, _) in enumerate(op.terms):
+        r += [(k * mc.fma_latency, a), (k * mc.fma_latency, b)]
+    return r
+
+
+def schedule(prog: Program, mc: Machine) -> Schedule:
+    """Place every operation of ``prog`` on machine ``mc``."""
+    ops = prog.ops
+    nops = len(ops)
+    shapes = [_shape(op, mc) for op in ops]
+    reads = [_reads_at(op, mc) for op in ops]
+    # Dependencies in program order: read after write, write after read, write after write.
+    succ = [[] for _ in range(nops)]
+    npred = [0] * nops
+    last_write, readers = {}, defaultdict(list)
+    raw_preds = [[] for _ in range(nops)]
+    for i, op in enumerate(ops):
+        preds = set()
+        for a in op.reads:
+            if a in last_write:
+                preds.add(last_write[a])
+                raw_preds[i].append(last_write[a])
+        for a in op.dst:
+            preds.update(readers[a])
+            if a in last_write:
+                preds.add(last_write[a])
+        preds.discard(i)
+        for p in preds:
+            succ[p].append(i)
+        npred[i] = len(preds)
+        for a in op.reads:
+            readers[a].append(i)
+        for a in op.dst:
+            last_write[a] = i
+            readers[a] = []
+    # Priority: the longest latency path from the op's start to the end of the step.
+    prio = [0] * nops
+    for i in range(nops - 1, -1, -1):
+        tail = max((prio[j] for j in succ[i]), default=0)
+        prio[i] = shapes[i][1] + 1 + tail
+    unlimited = mc.pes is None
+    pe_busy = set()  # (pe, cycle)
+    unit_busy = set()  # (unit, cycle)
+    port_reads = defaultdict(set)  # (bank, cycle) -> addresses read
+    port_writes = defaultdict(int)  # (bank, cycle) -> writes
+    ready = {}  # address -> first cycle it may be read (written by this step)
+    read_last = defaultdict(lambda: -1)  # address -> last cycle it is read
+    write_last = defaultdict(lambda: -1)
+    pe_floor = defaultdict(int)  # every slot of a PE below this cycle is taken
+    placed = [None] * nops
+    if not unlimited:
+        for i, op in enumerate(ops):
+            per = defaultdict(set)
+            for off, a in reads[i]:
+                per[off, a % mc.banks].add(a)
+            if max(map(len, per.values()), default=0) > mc.ports or len(op.dst) > mc.ports:
+                raise ValueError(f"operation {i} needs more than {mc.ports} ports of one bank in "
+                                 f"one cycle: {op!r}")
+    heap = [(-prio[i], i) for i in range(nops) if npred[i] == 0]
+    heapq.heapify(heap)
+
+    def ports_free(rd, wr, t, woff):
+        if unlimited:
+            return True
+        want = defaultdict(set)
+        for off, a in rd:
+            want[((a % mc.banks), t + off)].add(a)
+        for key, addrs in want.items():
+            have = port_reads.get(key, ())
+            if len(have) + len(addrs - set(have)) + port_writes.get(key, 0) > mc.ports:
+                return False
+        wcount = defaultdict(int)
+        for a in wr:
+            wcount[a % mc.banks] += 1
+        w = t + woff
+        for bank, k in wcount.items():
+            if len(port_reads.get((bank, w), ())) + port_writes.get((bank, w), 0) + k > mc.ports:
+                return False
+        return True
+
+    while heap:
+        _, i = heapq.heappop(heap)
+        op = ops[i]
+        offs, woff = shapes[i]
+        rd = reads[i]
+        t = -min(off for off, _ in rd) if rd else 0
+        for off, a in rd:
+            if a in ready:
+                t = max(t, ready[a] - off)
+        for a in op.dst:
+            t = max(t, read_last[a] + 1 - woff, write_last[a] + 1 - woff)
+        if unlimited:
+            pe = 0
+        else:
+            if op.unit == "fma":
+                t = max(t, min(pe_floor[p] for p in range(mc.pes)))
+            while True:
+                if op.unit == "fma":
+                    pe = next((p for p in range(mc.pes)
+                               if all((p, t + o) not in pe_busy for o in offs)), None)
+                    ok = pe is not None
+                else:
+                    pe = 0
+                    ok = (op.unit, t) not in unit_busy
+                if ok and ports_free(rd, op.dst, t, woff):
+                    break
+                t += 1
+            if op.unit == "fma":
+                for o in offs:
+                    pe_busy.add((pe, t + o))
+                f = pe_floor[pe]
+                while (pe, f) in pe_busy:
+                    f += 1
+                pe_floor[pe] = f
+            else:
+                unit_busy.add((op.unit, t))
+            for off, a in rd:
+                port_reads[a % mc.banks, t + off].add(a)
+            for a in op.dst:
+                port_writes[a % mc.banks, t + woff] += 1
+        w = t + woff
+        for off, a in rd:
+            read_last[a] = max(read_last[a], t + off)
+        for a in op.dst:
+            ready[a] = w + 1
+            write_last[a] = w
+        placed[i] = Placement(i, op.unit, pe, t, w)
+        for j in succ[i]:
+            npred[j] -= 1
+            if npred[j] == 0:
+                heapq.heappush(heap, (-prio[j], j))
+    return Schedule(prog, mc, placed)

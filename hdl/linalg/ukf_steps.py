@@ -1,0 +1,281 @@
+"""The UKF's three steps (sig_gen, predict, update) as engine programs.
+
+Equation numbers are the chapter's (Soh & Wu, "A Scalable, FPGA-Based Implementation of the
+Unscented Kalman Filter"). Structure known at generation is used instead of computed:
+
+* P^a = blockdiag(P, Q, R) (4), so L and D are block diagonal: each block is factored alone
+  by (23)-(24), one triangle, and no multiply-add touches the zero blocks;
+* the simplex matrix sigma (5)-(7) has in row j only two values, c_j = -1/sqrt(j'(j'+1)W1)
+  (columns 1..j') and d_j = j'/sqrt(j'(j'+1)W1) (column j'+1), j' = j+1, and zeros. The
+  recombination L1 = L2 sqrt(D) (22) is folded into sigma's rows (g_j = s_j c_j,
+  e_j = s_j d_j, s_j = sqrt(D_j)), and chi = x^a + L1 sigma (8) is built from the suffix sums
+  T_rk = x^a_r + sum_{j=k..r} L_rj g_j, each point one multiply-add: M^2 instead of M^3/6;
+* the weights take two values, W0 for point 0 and W1 for the rest (5), and sum to 1: the
+  means (10), (13) are point 0 plus W1 times the sum of the differences d_k = pt_k - pt_0,
+  and the covariances (11), (14), (15) are taken about point 0 and corrected by the mean's
+  offset (the shifted sums, see ``covariance``), so the long accumulations of the
+  covariance do not wait for the mean's. One triangle of P and S is computed, P's mirrored
+  on write-back;
+* K = Pxz S^-1 (16) is the right divide K L D L^T = Pxz: forward substitution, a division by
+  D, back substitution, row by row of K.
+
+Accumulation orders put the term that becomes ready last at the end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from math import isqrt
+
+from kfgen.hdl.arith.float.format import FloatFormat
+from kfgen.sim.float_ref import round_to_format
+
+from .program import Copy, Div, Dot, Layout, Program, Sqrt
+
+__all__ = ["UkfSizes", "UkfPrograms", "build_ukf", "simplex_rows"]
+
+
+@dataclass(frozen=True)
+class UkfSizes:
+    """n states, nw process-noise and nv measurement-noise terms, m observations."""
+
+    n: int
+    nw: int
+    nv: int
+    m: int
+
+    def __post_init__(self):
+        for k in ("n", "nw", "nv", "m"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{k} must be a positive integer, not {v!r}")
+
+    @property
+    def M(self) -> int:
+        return self.n + self.nw + self.nv
+
+    @property
+    def N(self) -> int:
+        return self.M + 2
+
+    @property
+    def blocks(self):
+        """(first, end) of P, Q and R inside P^a."""
+        n, w = self.n, self.n + self.nw
+        return ((0, n), (n, w), (w, self.M))
+
+
+def _sqrt(q: Fraction, bits: int = 256) -> Fraction:
+    """sqrt(q) truncated to ``bits`` fraction bits, plus a sticky half-unit if inexact."""
+    num = q.numerator << (2 * bits)
+    r = isqrt(num // q.denominator)
+    exact = r * r * q.denominator == num
+    return Fraction(r, 1 << bits) + (0 if exact else Fraction(1, 1 << (bits + 1)))
+
+
+def _word(fmt, value: Fraction) -> int:
+    return round_to_format(fmt, int(value < 0), abs(value))[0]
+
+
+def simplex_rows(M: int, w0) -> tuple[Fraction, list[Fraction], list[Fraction]]:
+    """W1 and sigma's row values c_j, d_j (5)-(7), exact or rounded far below any format."""
+    W1 = (1 - Fraction(w0)) / (M + 1)
+    c, d = [], []
+    for j in range(1, M + 1):
+        s = _sqrt(1 / (j * (j + 1) * W1))
+        c.append(-s)
+        d.append(j * s)
+    return W1, c, d
+
+
+@dataclass
+class UkfPrograms:
+    sizes: UkfSizes
+    w0: float
+    fmt: FloatFormat
+    layout: Layout
+    sig_gen: Program
+    predict: Program
+    update: Program
+
+    @property
+    def steps(self):
+        return {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
+
+
+def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
+    """The memory layout and the three step programs for one configuration."""
+    fmt = FloatFormat.parse(fmt)
+    if not 0 <= w0 < 1:
+        raise ValueError(f"w0 must be in [0, 1), not {w0!r}")
+    n, nw, nv, m = sizes.n, sizes.nw, sizes.nv, sizes.m
+    M, N = sizes.M, sizes.N
+    W1, c, d = simplex_rows(M, w0)
+    lay = Layout()
+    # The processor's buffer (names fixed by the issue), then work, then constants.
+    x = lay.add("x", n, 1, "bus")
+    P = lay.add("P", n, n, "bus")
+    Q = lay.add("Q", nw, nw, "bus")
+    R = lay.add("R", nv, nv, "bus")
+    chi = lay.add("sigma_points", N, M, "bus")
+    chif = lay.add("sigma_points_f", N, n, "bus")
+    chih = lay.add("sigma_points_h", N, m, "bus")
+    z = lay.add("z", m, 1, "bus")
+    # Work. P^a's blocks share one packed triangle (F, then L below the diagonal; D; s).
+    tri = [(i, j) for b0, b1 in sizes.blocks for i in range(b0, b1) for j in range(b0, i)]
+    F = lay.add("F", len(tri))
+    L = lay.add("L", len(tri))
+    D = lay.add("D", M)
+    s = lay.add("s", M)
+    g = lay.add("g", M)
+    e = lay.add("e", M)
+    T = lay.add("T", len(tri))  # suffix sums T_rk, k < r (T_rr has its own word in "Tr")
+    Tr = lay.add("Tr", M)
+    dx = lay.add("dx", n, N - 1)  # predict's differences from point 0, kept for Pxz
+    dlx = lay.add("delta_x", n)
+    Gx = lay.add("Gx", n, n)
+    dz = lay.add("dz", m, N - 1)
+    dlz = lay.add("delta_z", m)
+    Gs = lay.add("Gs", m, m)
+    Gxz = lay.add("Gxz", n, m)
+    S = lay.add("S", m, m)
+    FS = lay.add("FS", m, m)  # F of S's LDL^T below the diagonal (23)
+    LS = lay.add("LS", m, m)
+    DS = lay.add("DS", m)
+    Pxz = lay.add("Pxz", n, m)
+    Y = lay.add("Yfw", n, m)  # forward substitution
+    U = lay.add("Udiv", n, m)  # after the division by D
+    K = lay.add("K", n, m)
+    inn = lay.add("innov", m)
+    one = lay.const("one", [_word(fmt, Fraction(1))])(0, 0)
+    w1 = lay.const("w1", [_word(fmt, W1)])(0, 0)
+    sig_c = lay.const("sigma_c", [_word(fmt, v) for v in c])
+    sig_d = lay.const("sigma_d", [_word(fmt, v) for v in d])
+    ti = {ij: t for t, ij in enumerate(tri)}
+
+    def A(i, j):  # P^a's lower triangle, block by block (4)
+        for reg, (b0, b1) in zip((P, Q, R), sizes.blocks):
+            if b0 <= i < b1:
+                return reg(i - b0, j - b0)
+        raise AssertionError
+
+    # ---- sig_gen -------------------------------------------------------------------------
+    sg = Program("sig_gen", lay, fmt)
+
+    def ldl(prog, nb, a, f, l, dd):
+        """LDL^T of an nb x nb block by (23)-(24), column by column; F_ij = L_ij D_j.
+
+        Returns the addresses of F (column 0 is A's own), L and D. Every pivot D_j, the
+        first a copy of A_00, is checked (err_pivot)."""
+        fa, la = {}, {}
+        for j in range(nb):
+            for i in range(j + 1, nb):
+                fa[i, j] = a(i, j) if j == 0 else f(i, j)
+        for j in range(nb):
+            if j == 0:
+                prog.emit(Copy(dd(j), a(j, j), "pivot"))
+            else:
+                prog.emit(Dot(dd(j), a(j, j), [(la[j, k], fa[j, k], True) for k in range(j)],
+                              "pivot"))
+            for i in range(j + 1, nb):
+                if j:
+                    prog.emit(Dot(fa[i, j], a(i, j), [(la[i, k], fa[j, k], True) for k in range(j)]))
+            for i in range(j + 1, nb):
+                la[i, j] = l(i, j)
+                prog.emit(Div(la[i, j], fa[i, j], dd(j)))
+        return fa, la
+
+    lsg = {}
+    for b0, b1 in sizes.blocks:
+        _, la = ldl(sg, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
+            lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
+            lambda j, b0=b0: D(j + b0))
+        lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
+    for j in range(M):  # sqrt(D) (22), folded into sigma's rows
+        sg.emit(Sqrt(s(j), D(j)))
+        sg.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
+        sg.emit(Dot(e(j), None, [(s(j), sig_d(0, j), False)]))
+
+    def l2(rr, j):  # L2's entry (unit diagonal)
+        return one if rr == j else lsg[rr, j]
+
+    for b0, b1 in sizes.blocks:
+        for rr in range(b0, b1):
+            xa = x(rr) if rr < n else None  # x^a = [x; 0; 0] (3)
+            base = {rr + 1: xa}  # base[k] = T_rk, the suffix sum from column k
+            for k in range(rr, b0 - 1, -1):
+                if k == rr and xa is None:
+                    base[k] = g(rr)  # 0 + 1 * g_r needs no multiply-add
+                    continue
+                dst = Tr(rr) if k == rr else T(ti[rr, k])
+                if k == b0:
+                    dst = chi(1, rr)  # chi_1 = T_r,b0: sigma's column 1 is all c
+                sg.emit(Dot(dst, base[k + 1], [(l2(rr, k), g(k), False)]))
+                base[k] = dst
+            for i in range(N):  # chi_i = x^a + L1 sigma_i (8)
+                if i == 0:
+                    src, term = xa, None
+                else:
+                    src = base[max(b0, i - 1)] if max(b0, i - 1) <= rr else xa
+                    term = (l2(rr, i - 2), e(i - 2), False) if b0 <= i - 2 <= rr else None
+                if term is not None:
+                    sg.emit(Dot(chi(i, rr), src, [term]))
+                elif src is not None and src != chi(i, rr):
+                    sg.emit(Copy(chi(i, rr), src))
+                # src None: a noise row beyond sigma's nonzeros, zero since reset (the bus
+                # cannot write sigma_points, and nothing else writes these words)
+
+    # ---- predict -------------------------------------------------------------------------
+    pr = Program("predict", lay, fmt)
+
+    def moments(prog, pts, dim, dd, delta):
+        """Differences from point 0, d_ik = pt_k[i] - pt_0[i], and the mean's offset from
+        point 0, delta_i = W1 sum_k d_ik (10)/(13) with sum W = 1; d_i0 = 0."""
+        for i in range(dim):
+            for k in range(1, N):
+                prog.emit(Dot(dd(i, k - 1), pts(k, i), [(one, pts(0, i), True)]))
+        for i in range(dim):
+            prog.emit(Dot(delta(i), None, [(w1, dd(i, k), False) for k in range(N - 1)]))
+
+    def covariance(prog, da, dela, ra, db, delb, rb, G, dst, lower, check=None):
+        """(11), (14), (15) by (27)-(28) about point 0 instead of the mean (the shifted sums):
+        sum_k W_k (a_k - a^)(b_k - b^)^T = W1 sum_k da_k db_k^T - dela delb^T. The residuals
+        and the mean's chain then run side by side instead of one after the other."""
+        for i in range(ra):
+            for j in range(i + 1 if lower else rb):
+                prog.emit(Dot(G(i, j), None, [(da(i, k), db(j, k), False) for k in range(N - 1)]))
+                prog.emit(Dot(dst(i, j), None, [(dela(i), delb(j), True), (w1, G(i, j), False)],
+                              check))
+
+    moments(pr, chif, n, dx, dlx)
+    for i in range(n):  # x^- = chi_0 + delta (10)
+        pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
+    covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
+               lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
+
+    # ---- update --------------------------------------------------------------------------
+    up = Program("update", lay, fmt)
+    moments(up, chih, m, dz, dlz)
+    covariance(up, dz, dlz, m, dz, dlz, m, Gs, S, True)  # S (14), lower triangle
+    covariance(up, dx, dlx, n, dz, dlz, m, Gxz, Pxz, False)  # Pxz (15)
+    for i in range(m):
+        up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
+    _, ls = ldl(up, m, S, FS, LS, DS)
+    for p in range(n):  # K L D L^T = Pxz (16), one row of K at a time
+        y = {0: Pxz(p, 0)}
+        for j in range(1, m):
+            y[j] = Y(p, j)
+            up.emit(Dot(y[j], Pxz(p, j), [(ls[j, i], y[i], True) for i in range(j)]))
+        for j in range(m):
+            up.emit(Div(U(p, j) if j < m - 1 else K(p, j), y[j], DS(j)))
+        for j in range(m - 2, -1, -1):
+            up.emit(Dot(K(p, j), U(p, j), [(ls[i, j], K(p, i), True) for i in range(m - 1, j, -1)]))
+    for i in range(n):  # (17): K's column 0 is solved last, so it comes last
+        up.emit(Dot(x(i), x(i), [(K(i, j), inn(j), False) for j in range(m - 1, -1, -1)], "finite"))
+    for i in range(n):  # (19), the lower triangle mirrored
+        for j in range(i + 1):
+            dst = (P(i, j),) if i == j else (P(i, j), P(j, i))
+            up.emit(Dot(dst, P(i, j), [(Pxz(i, l), K(j, l), True) for l in range(m - 1, -1, -1)],
+                        "finite"))
+    return UkfPrograms(sizes, w0, fmt, lay, sg, pr, up)

@@ -1,0 +1,85 @@
+"""Bit-exact golden model of the linear-algebra engine: runs a step program on memory words.
+
+Every multiply-add, division and square root is rounded once by the exact reference
+:func:`kfgen.sim.float_ref.ref_op`, in the program's order; since the order of every
+accumulation is part of the program, this is what the hardware computes, word for word,
+whatever the schedule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kfgen.hdl.linalg.program import Copy, Div, Dot, Program, Sqrt
+from kfgen.sim.float_ref import ref_op
+
+__all__ = ["Status", "run", "to_words", "from_words"]
+
+
+@dataclass
+class Status:
+    """What the hardware raises: ``pivot`` (a checked pivot <= 0 or NaN), ``nan`` (a NaN or
+    infinity in a checked result), and the OR of the units' IEEE flags (NX UF OF DZ NV)."""
+
+    pivot: bool = False
+    nan: bool = False
+    flags: int = 0
+
+
+def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
+    """Execute ``prog`` on ``mem`` (a list of words, changed in place); return the status.
+
+    The whole program runs even after a fault (what the hardware leaves in memory after it
+    stops early is not modelled here)."""
+    fmt = prog.fmt
+    sign = 1 << (fmt.width - 1)
+    exp_all = fmt.exp_max_field << fmt.frac_bits
+    st = Status()
+    for op in prog.ops:
+        if isinstance(op, Dot):
+            acc = sign if op.init is None else mem[op.init]  # -0: the neutral addend
+            for a, b, neg in op.terms:
+                acc, fl = ref_op("fma", fmt, mem[a] ^ (sign if neg else 0), mem[b], acc, subnormals)
+                st.flags |= fl
+        elif isinstance(op, Div):
+            acc, fl = ref_op("div", fmt, mem[op.a], mem[op.b], None, subnormals)
+            st.flags |= fl
+        elif isinstance(op, Sqrt):
+            acc, fl = ref_op("sqrt", fmt, mem[op.a], None, None, subnormals)
+            st.flags |= fl
+        elif isinstance(op, Copy):
+            acc = mem[op.src]
+        else:
+            raise TypeError(f"unknown operation {op!r}")
+        special = acc & exp_all == exp_all  # NaN or infinity
+        if op.check == "pivot" and (special and acc & fmt.frac_mask or acc & sign or not acc & ~sign):
+            st.pivot = True  # NaN, negative (or -0), +0
+        elif op.check == "finite" and special:
+            st.nan = True
+        for d in op.dst:
+            mem[d] = acc
+    return st
+
+
+def to_words(fmt, values) -> list[int]:
+    """Float64 values rounded once to ``fmt``'s words (NaN: the canonical NaN)."""
+    import math
+    from fractions import Fraction
+
+    from kfgen.sim.float_ref import round_to_format
+    out = []
+    for v in map(float, values):
+        sign = int(math.copysign(1.0, v) < 0)
+        if math.isnan(v):
+            out.append(fmt.canonical_nan)
+        elif math.isinf(v):
+            out.append(fmt.inf(sign))
+        else:
+            out.append(round_to_format(fmt, sign, abs(Fraction(v)))[0])
+    return out
+
+
+def from_words(fmt, words) -> list[float]:
+    """The values of ``fmt`` words as float64 (exact for every format up to binary64)."""
+    from kfgen.sim.float_ref import decode
+    return [float(decode(fmt, w)) for w in words]

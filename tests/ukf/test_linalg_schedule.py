@@ -1,0 +1,129 @@
+"""The list scheduler: every schedule keeps the program's dependencies and the machine's
+resource limits; cycle counts against the bounds and the chapter's Table 4."""
+
+from collections import Counter, defaultdict
+
+import pytest
+
+from kfgen.hdl.arith.float.div import FloatDiv
+from kfgen.hdl.arith.float.fma import FloatFMA
+from kfgen.hdl.arith.float.sqrt import FloatSqrt
+from kfgen.hdl.linalg.schedule import Machine, schedule
+from kfgen.hdl.linalg.store import encode, store_size
+from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
+
+CHAPTER = {1: 22600, 2: 13500, 5: 9050, 10: 7450}  # Table 4, cycles per iteration at 100 MHz
+
+
+def latencies(fmt):
+    units = [cls(fmt) for cls in (FloatFMA, FloatDiv, FloatSqrt)]
+    for u in units:
+        u._MustUse__silence = True  # only the latency is read
+    return [u.latency for u in units]
+
+
+def machine(pes, fmt="binary32"):
+    return Machine(pes, *latencies(fmt))
+
+
+def check_schedule(s):
+    """Dependencies in program order and resource limits, from the placements alone."""
+    prog, mc = s.program, s.machine
+    ops, pl = prog.ops, s.placements
+    reads = [s.reads(p) for p in pl]
+    last_write, readers = {}, defaultdict(list)
+    for i, op in enumerate(ops):
+        for cyc, a in reads[i]:
+            if a in last_write:  # read after write: from the next cycle on
+                assert cyc > pl[last_write[a]].write, (i, a)
+        for a in op.dst:
+            for j in readers[a]:  # write after read
+                assert pl[i].write > max(c for c, b in reads[j] if b == a), (i, j, a)
+            if a in last_write:
+                assert pl[i].write > pl[last_write[a]].write, (i, a)
+        for _, a in reads[i]:
+            readers[a].append(i)
+        for a in op.dst:
+            last_write[a] = i
+            readers[a] = []
+    issues = Counter()
+    for cyc, lst in s.issues().items():
+        for unit, pe, _, _ in lst:
+            issues[unit, pe if unit == "fma" else 0, cyc] += 1
+    assert max(issues.values()) == 1  # one issue per PE, divider, square root, move unit
+    assert all(p.pe < mc.pes for p in pl)
+    for p in pl:  # terms exactly Lf apart; result after the last term's latency
+        op = ops[p.op]
+        n = len(op.terms) if p.unit == "fma" else 1
+        lat = mc.latency(p.unit)
+        assert p.write == p.start + (n - 1) * mc.fma_latency * (p.unit == "fma") + mc.read_latency + lat
+    ports = defaultdict(set)
+    writes = Counter()
+    for i, p in enumerate(pl):
+        for cyc, a in reads[i]:
+            ports[a % mc.banks, cyc].add(a)
+        for a in ops[i].dst:
+            writes[a % mc.banks, p.write] += 1
+    for key in set(ports) | set(writes):
+        assert len(ports.get(key, ())) + writes.get(key, 0) <= mc.ports, key
+    assert s.cycles == max(p.write for p in pl) + 1
+
+
+@pytest.mark.parametrize("sizes,pes,fmt", [
+    ((2, 1, 1, 1), 1, "binary32"), ((2, 1, 1, 1), 3, "binary64"),
+    ((7, 6, 7, 6), 1, "binary32"), ((7, 6, 7, 6), 2, "binary32"),
+    ((7, 6, 7, 6), 5, "binary32"), ((7, 6, 7, 6), 10, "binary32"),
+])
+def test_schedule_invariants(sizes, pes, fmt):
+    ukf = build_ukf(UkfSizes(*sizes), 0.25, fmt)
+    for prog in ukf.steps.values():
+        check_schedule(schedule(prog, machine(pes, fmt)))
+
+
+def test_cycles_against_bounds_and_chapter(capsys):
+    """M = 20 (7/6/7/6), binary32: each step and the iteration within 1.3x of
+    max(multiply-adds / P, chain bound), and at least 2x fewer cycles than Table 4."""
+    ukf = build_ukf(UkfSizes(7, 6, 7, 6), 0.0, "binary32")
+    lf, ld, ls = latencies("binary32")
+    chain = {k: schedule(p, machine(1).unlimited()).cycles for k, p in ukf.steps.items()}
+    rows = [f"latencies: FMA {lf}, div {ld}, sqrt {ls}, read 1; chain bound {chain}"]
+    for pes in (1, 2, 5, 10):
+        scheds = {k: schedule(p, machine(pes)) for k, p in ukf.steps.items()}
+        total = sum(s.cycles for s in scheds.values())
+        fmas = sum(p.fma_count for p in ukf.steps.values())
+        for k, s in scheds.items():
+            bound = max(ukf.steps[k].fma_count / pes, chain[k])
+            assert s.cycles <= 1.3 * bound, (pes, k, s.cycles, bound)
+        bound = max(fmas / pes, sum(chain.values()))
+        assert total <= 1.3 * bound
+        assert 2 * total <= CHAPTER[pes]
+        size = store_size(list(scheds.values()), ukf.layout.size)
+        rows.append(f"P={pes:2}: " + ", ".join(f"{k} {s.cycles}" for k, s in scheds.items())
+                    + f"; iteration {total} (bound {bound:.0f}, x{total / bound:.2f}; "
+                    f"FMAs/P {fmas / pes:.0f}; chapter {CHAPTER[pes]}, /{CHAPTER[pes] / total:.1f}); "
+                    f"store {size.instructions} x {size.word_bits} = {size.bits} bits")
+    with capsys.disabled():
+        print("\n" + "\n".join(rows))
+
+
+def test_store_covers_every_term():
+    ukf = build_ukf(UkfSizes(3, 2, 2, 2), 0.0)
+    for prog in ukf.steps.values():
+        s = schedule(prog, machine(2))
+        ins = encode(s)
+        assert sum(i.count for i in ins if i.unit == "fma") == prog.fma_count
+        assert sum(1 for i in ins if i.last) == len(prog.ops)
+        # replay the address generators: the same reads at the same cycles as the schedule
+        lf = s.machine.fma_latency
+        got = sorted((i.start + k * lf, i.a0 + k * i.sa, i.b0 + k * i.sb, i.pe)
+                     for i in ins if i.unit == "fma" for k in range(i.count))
+        want = sorted((p.start + k * lf, a, b, p.pe) for p in s.placements if p.unit == "fma"
+                      for k, (a, b, _) in enumerate(prog.ops[p.op].terms))
+        assert got == want
+
+
+def test_machine_rules():
+    with pytest.raises(ValueError, match="pes"):
+        Machine(0, 9, 32, 29)
+    with pytest.raises(ValueError, match="ports"):
+        schedule(build_ukf(UkfSizes(2, 1, 1, 1)).update, Machine(1, 9, 32, 29, banks=1, ports=1))
