@@ -5,10 +5,11 @@ import subprocess
 
 import pytest
 
-from kfgen.hdl.arith.float.params import OPS, FpuParams
+from kfgen.hdl.arith.float.params import (CLOCK_MHZ, OPS, FpuParamError, FpuParams, cycles_per_op_range,
+                                         ranges_text, stages_range)
 from kfgen.sim.toolchain import iverilog, run_verilator
 
-from conftest import kfgen
+from conftest import ROOT, kfgen
 
 
 @pytest.mark.parametrize("args,param", [
@@ -29,6 +30,71 @@ def test_bad_parameters_exit_2_with_one_line(tmp_path, args, param):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"kfgen: error: {param}:"), proc.stderr
     assert "Traceback" not in proc.stderr and not list(tmp_path.iterdir())
+
+
+def _error(tmp_path, *args):
+    proc = kfgen("fpu", *args, "-o", tmp_path, check=False)
+    assert proc.returncode == 2 and not list(tmp_path.iterdir())
+    return proc.stderr.strip()
+
+
+def test_count_errors_quote_the_range_functions(tmp_path):
+    """Stages 0, one too many and ``x``, and cycles per operation one too many for binary32
+    div: every error gives the range :func:`stages_range` or :func:`cycles_per_op_range` gives."""
+    lo, hi = stages_range("add", "binary32")
+    for value in (lo - 1, hi + 1):
+        assert _error(tmp_path, "--stages", value) == \
+            f"kfgen: error: --stages: must be an integer in {lo}..{hi} for add binary32, not {value}"
+    assert f"add {lo}..{hi}," in _error(tmp_path, "--stages", "x")
+    config = tmp_path.parent / "stages_x.toml"
+    config.write_text('stages = "x"\n')
+    assert _error(tmp_path, "--config", config) == f"kfgen: error: --stages: must be an integer in " \
+                                                   f"{lo}..{hi} for add binary32, not 'x' (from {config})"
+
+    lo, hi = cycles_per_op_range("div", "binary32")
+    assert _error(tmp_path, "--op", "div", "--cycles-per-op", hi + 1) == \
+        f"kfgen: error: --cycles-per-op: must be an integer in {lo}..{hi} for div binary32, not {hi + 1}"
+    assert f"div {lo}..{hi}," in _error(tmp_path, "--op", "div", "--cycles-per-op", "x")
+    lo, hi = stages_range("div", "binary32", "ftz", 4)
+    assert _error(tmp_path, "--op", "div", "--subnormals", "ftz", "--cycles-per-op", 4, "--stages", hi + 1) == \
+        f"kfgen: error: --stages: must be an integer in {lo}..{hi} for div binary32, ftz, cycles_per_op 4, " \
+        f"not {hi + 1}"
+
+
+def test_help_and_readme_quote_the_ranges_and_the_design_clock():
+    help_text = " ".join(kfgen("fpu", "--help").stdout.split())
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    for text in (help_text, readme):
+        assert f"in binary32: {ranges_text('stages')}" in text
+        assert f"in binary32: {ranges_text('cycles_per_op')}" in text
+        assert f"designed for {CLOCK_MHZ} MHz" in text
+
+
+@pytest.mark.parametrize("fmt", ["binary16", "binary32", "e3m2", "e15m64"])
+@pytest.mark.parametrize("op", list(OPS))
+def test_ranges_are_what_the_units_build(op, fmt):
+    """The ranges' ends build, one past them does not, in the core and in the unit."""
+    unit_cls = type(FpuParams(op=op, format=fmt).build())
+    k_lo, k_hi = cycles_per_op_range(op, fmt)
+    assert k_lo == 1 and (k_hi > 1) == OPS[op][2]
+    if OPS[op][2]:
+        with pytest.raises(ValueError, match="cycles_per_op"):
+            unit_cls(fmt, cycles_per_op=k_hi + 1)
+    with pytest.raises(FpuParamError, match=f"in 1..{k_hi} for {op} {fmt}, not {k_hi + 1}"):
+        FpuParams(op=op, format=fmt, cycles_per_op=k_hi + 1)
+    for subnormals in ("ieee", "ftz"):
+        for k in sorted({k_lo, (k_lo + k_hi) // 2, k_hi}):
+            lo, hi = stages_range(op, fmt, subnormals, k)
+            assert 1 <= lo < hi
+            for stages in (lo, hi):
+                assert FpuParams(op=op, format=fmt, subnormals=subnormals, stages=stages,
+                                 cycles_per_op=k).build().latency == stages
+            kw = {"cycles_per_op": k} if OPS[op][2] else {}
+            with pytest.raises(ValueError, match="stages"):
+                unit_cls(fmt, subnormals=subnormals, stages=hi + 1, **kw)
+            for stages in (lo - 1, hi + 1):
+                with pytest.raises(FpuParamError, match=f"in {lo}..{hi} for {op} {fmt}"):
+                    FpuParams(op=op, format=fmt, subnormals=subnormals, stages=stages, cycles_per_op=k)
 
 
 @pytest.mark.parametrize("op", list(OPS))
