@@ -1,7 +1,11 @@
 """`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus and Verilator."""
 
+import contextlib
+import io
 import json
+import multiprocessing
 import subprocess
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
@@ -142,33 +146,62 @@ def test_icarus_compiles(tmp_path, args):
     assert ic.returncode == 0, ic.stderr
 
 
-def _min_stages(op):
-    return min(s for s in FpuParams(op=op).build().PLANS if s >= 1)
+#: Formats linted with every operation: the named ones, and eEmM across the widths the command
+#: line accepts (exponent 3..15 bits, fraction 2..64): the narrowest; significands mul takes in
+#: LUT rows alone (up to 8 bits: e4m3 to e5m7), in one multiplier block (e6m11), in several; a
+#: narrow exponent with a wide fraction, the reverse, and the widest.
+LINT_FORMATS = ("binary16", "bfloat16", "binary32", "binary64", "e3m2", "e4m3", "e5m5", "e6m6",
+                "e5m7", "e6m11", "e3m40", "e15m2", "e15m64")
+#: Formats also linted with ftz; with the fewest stages (the most logic between registers,
+#: where Yosys folds the most); with div and sqrt iterative.
+FTZ_FORMATS = ("binary32", "bfloat16", "e3m2", "e6m11")
+MIN_STAGES_FORMATS = ("binary32", "binary16", "e5m5", "e15m2")
+ITERATIVE_FORMATS = ("binary32", "binary64", "e3m2", "e15m64")
 
 
-#: Cores linted: every operation's default, then other formats (a constant exponent and a padded
-#: significand in i2f binary64, the split leading-zero count of fma), the fewest stages (the
-#: most logic between registers, where Yosys folds the most), ftz, and iterative cores.
-LINT_CONFIGS = {
-    **{op: ["--op", op] for op in OPS},
-    **{f"{op}_{fmt}": ["--op", op, "--format", fmt] for op, fmt in [
-        ("add", "binary16"), ("fma", "binary16"), ("sqrt", "binary16"),
-        ("mul", "binary64"), ("fma", "binary64"), ("div", "binary64"), ("i2f", "binary64"),
-        ("f2i", "binary64"), ("add", "e6m11"), ("fma", "e6m11"), ("sqrt", "e6m11")]},
-    **{f"{op}_min": ["--op", op, "--stages", str(_min_stages(op))]
-       for op in ("add", "mul", "fma", "div", "i2f", "f2i")},
-    **{f"{op}_ftz": ["--op", op, "--subnormals", "ftz"] for op in ("add", "mul", "fma", "div")},
-    "div_cpo4": ["--op", "div", "--cycles-per-op", "4"],
-    "div_cpo26": ["--op", "div", "--cycles-per-op", "26", "--format", "binary64"],
-    "sqrt_cpo4": ["--op", "sqrt", "--cycles-per-op", "4"],
-}
+def _lint_configs(fmt):
+    """id -> ``kfgen fpu`` arguments of the cores linted in ``fmt``: every operation's default;
+    in samples of formats ftz, the fewest stages, and div and sqrt at their most cycles per
+    operation (one recurrence step a cycle), in binary32 also at two and four."""
+    configs = {}
+    for op in OPS:
+        args = ["--op", op, "--format", fmt]
+        configs[op] = args
+        if fmt in FTZ_FORMATS:
+            configs[f"{op}_ftz"] = args + ["--subnormals", "ftz"]
+        if fmt in MIN_STAGES_FORMATS:
+            configs[f"{op}_min"] = args + ["--stages", str(stages_range(op, fmt)[0])]
+        if OPS[op][2] and fmt in ITERATIVE_FORMATS:
+            for k in ([2, 4] if fmt == "binary32" else []) + [cycles_per_op_range(op, fmt)[1]]:
+                configs[f"{op}_cpo{k}"] = args + ["--cycles-per-op", str(k)]
+    return configs
 
 
-@pytest.mark.parametrize("args", list(LINT_CONFIGS.values()), ids=list(LINT_CONFIGS))
-def test_verilator_lint_clean(tmp_path, args):
-    """``verilator -Wall --lint-only`` with the core's own waivers: not one warning."""
-    kfgen("fpu", *args, "--name", "u", "-o", tmp_path)
-    proc = run_verilator(["--lint-only", "-Wall", str(tmp_path / "u.vlt"), str(tmp_path / "u.v"),
-                          "--top-module", "u"])
+def _generate_and_lint(args, out):
+    """Warnings of ``verilator -Wall --lint-only`` with the core's own waivers on the core that
+    ``kfgen fpu ARGS`` writes into ``out`` (in a worker process)."""
+    from kfgen.gen.cli import main
+
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+        if main(["fpu", *args, "--name", "u", "-o", out]) != 0:
+            return [err.getvalue().strip()]
+    proc = run_verilator(["--lint-only", "-Wall", f"{out}/u.vlt", f"{out}/u.v", "--top-module", "u"])
     messages = [line for line in proc.stderr.splitlines() if line.startswith("%")]
-    assert proc.returncode == 0 and not messages, "\n".join(messages)
+    return messages or ([proc.stderr.strip()] if proc.returncode else [])
+
+
+@pytest.fixture(scope="module")
+def lint_pool():
+    # Processes, not threads: generating a core is Python under the GIL. Two, for two cores.
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield pool
+
+
+@pytest.mark.parametrize("fmt", LINT_FORMATS)
+def test_verilator_lint_clean(tmp_path, lint_pool, fmt):
+    """``verilator -Wall --lint-only`` with the core's own waivers: not one warning."""
+    configs = _lint_configs(fmt)
+    jobs = {key: lint_pool.submit(_generate_and_lint, args, str(tmp_path / key)) for key, args in configs.items()}
+    failed = {key: job.result() for key, job in jobs.items() if job.result()}
+    assert not failed, "\n".join(f"kfgen fpu {' '.join(configs[k])}:\n  " + "\n  ".join(m)
+                                  for k, m in failed.items())
