@@ -132,12 +132,14 @@ def _fpu_docs() -> dict[str, Doc]:
     from kfgen.hdl.arith.float.params import CLOCK_MHZ, OPS, ranges_text
     return {
         "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
-                  "float to int32 (round to nearest even, saturating)", "", "one of " + ", ".join(OPS)),
+                  "float to int32 (round to nearest even, saturating)", "",
+                  "one of " + ", ".join(OPS) + " (any case)"),
         "format": Doc("floating-point format", "",
                       "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
-                      "and M stored fraction bits (2..64), e.g. e6m11"),
+                      "and M stored fraction bits (2..64), e.g. e6m11 (any case; an eEmM that is a "
+                      "named format is recorded by its name: e8m23 is binary32)"),
         "subnormals": Doc("ieee: gradual underflow; ftz: subnormal inputs and results flushed to zero "
-                          "(smaller, as vendor IP)", "", "ieee or ftz"),
+                          "(smaller, as vendor IP)", "", "ieee or ftz (any case)"),
         "stages": Doc("pipeline register stages = latency; the default is designed for "
                       f"{CLOCK_MHZ} MHz on an ECP5-85 in binary32 (iterative div/sqrt: the "
                       "recurrence's block sets the clock, slower the fewer cycles_per_op)", "cycles",

@@ -136,6 +136,40 @@ def test_deterministic(tmp_path):
         assert str(tmp_path) not in (a / name).read_text()
 
 
+#: Spellings of one core, by the parameters it records.
+SPELLINGS = {
+    ("mul", "binary32", "ftz"): [
+        ["--op", "mul", "--format", "binary32", "--subnormals", "ftz"],
+        ["--op", "MUL", "--format", "E8M23", "--subnormals", "FTZ"],
+        ["--op", "Mul", "--format", "e8m23", "--subnormals", "Ftz"],
+        ["--op", "mul", "--format", "BINARY32", "--subnormals", "ftz"],
+        ["--config", 'op = "MUL"\nformat = "E8M23"\nsubnormals = "FTZ"\n']],
+    ("div", "bfloat16", "ieee"): [
+        ["--op", "div", "--format", "bfloat16"], ["--op", "DIV", "--format", "e8m7"],
+        ["--op", "div", "--format", "E8M7", "--subnormals", "IEEE"], ["--op", "div", "--format", "BFloat16"]],
+    ("sqrt", "binary16", "ieee"): [["--op", "sqrt", "--format", "binary16"], ["--op", "sqrt", "--format", "e5m10"]],
+    ("i2f", "binary64", "ieee"): [["--op", "i2f", "--format", "binary64"], ["--op", "I2F", "--format", "E11M52"]],
+    ("fma", "e6m11", "ieee"): [["--op", "fma", "--format", "e6m11"], ["--op", "FMA", "--format", "E6M11"]],
+}
+
+
+@pytest.mark.parametrize("core", list(SPELLINGS), ids=["_".join(c) for c in SPELLINGS])
+def test_every_spelling_gives_the_same_bytes(tmp_path, core):
+    """Names are read whatever their case, and an eEmM that is a named format as that format:
+    the parameters, and so the files, record one spelling."""
+    outputs = []
+    for k, args in enumerate(SPELLINGS[core]):
+        if args[0] == "--config":
+            (tmp_path / "spelling.toml").write_text(args[1])
+            args = ["--config", tmp_path / "spelling.toml"]
+        out = tmp_path / str(k)
+        kfgen("fpu", *args, "--name", "u", "-o", out)
+        outputs.append({name: (out / name).read_bytes() for name in ("u.v", "u.vlt", "u.json")})
+    assert all(files == outputs[0] for files in outputs[1:])
+    recorded = json.loads(outputs[0]["u.json"])["parameters"]
+    assert (recorded["op"], recorded["format"], recorded["subnormals"]) == core
+
+
 @pytest.mark.parametrize("args", [["--op", "add"], ["--op", "mul"], ["--op", "fma"], ["--op", "div"],
                                   ["--op", "sqrt", "--cycles-per-op", "4"], ["--op", "i2f"], ["--op", "f2i"],
                                   ["--op", "add", "--subnormals", "ftz"]])

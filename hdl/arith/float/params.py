@@ -79,6 +79,11 @@ class FpuParamError(ValueError):
         self.param = param
 
 
+def _canonical(value):
+    """Case and surrounding spaces do not matter in a name."""
+    return value.strip().lower() if isinstance(value, str) else value
+
+
 def _in_range(value, lo: int, hi: int) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and lo <= value <= hi
 
@@ -86,6 +91,11 @@ def _in_range(value, lo: int, hi: int) -> bool:
 @dataclass(frozen=True)
 class FpuParams:
     """Generation parameters of one floating-point unit as a core.
+
+    Names are read whatever their case (``--op MUL --format E8M23``) and recorded in their
+    canonical spelling: lowercase, and a format by its standard name when it has one (``e8m23``
+    is ``binary32``, ``e5m10`` ``binary16``, ``e11m52`` ``binary64``, ``e8m7`` ``bfloat16``),
+    so every spelling of one core gives the same files.
 
     Parameters
     ----------
@@ -120,16 +130,18 @@ class FpuParams:
     name: str = "fpu"
 
     def __post_init__(self):
-        op, fmt, subnormals = self.op, self.format, self.subnormals
+        op, subnormals = _canonical(self.op), _canonical(self.subnormals)
         if op not in OPS:
             raise FpuParamError("op", f"must be one of {', '.join(OPS)}, not {self.op!r}")
         try:
-            FloatFormat.parse(self.format)
+            fmt = FloatFormat.parse(self.format).name
         except ValueError as exc:
             raise FpuParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM "
                                           f"(exponent 3..15 bits, fraction 2..64 bits): {exc}") from None
         if subnormals not in ("ieee", "ftz"):
             raise FpuParamError("subnormals", f"must be ieee or ftz, not {self.subnormals!r}")
+        for key, value in (("op", op), ("format", fmt), ("subnormals", subnormals)):
+            object.__setattr__(self, key, value)
 
         lo, hi = cycles_per_op_range(op, fmt)
         if not _in_range(self.cycles_per_op, lo, hi):
