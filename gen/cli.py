@@ -154,8 +154,10 @@ def _read_config(path: str, fields: Mapping) -> dict:
     return out
 
 
-def _convert(field: str, text: str, default, doc: Doc):
-    """A command-line string as the type of the field's default."""
+def _convert(text: str, default):
+    """A command-line string as the type of the field's default; text that is not one is
+    passed on as it is, so that the parameter class's own check (one message shape per
+    parameter, with its range) rejects it."""
     if isinstance(default, str):
         return text
     try:
@@ -163,13 +165,12 @@ def _convert(field: str, text: str, default, doc: Doc):
             return int(text, 10)
         return float(text)
     except ValueError:
-        kind = "an integer" if default is None or isinstance(default, int) else "a number"
-        raise UsageError(option(field), f"must be {kind}, not {text!r} (allowed: {doc.allowed})") from None
+        return text
 
 
 def _params(core: CoreDescriptor, args: argparse.Namespace):
     params_cls = core.params
-    defaults, docs = _defaults(params_cls), core.docs()
+    defaults = _defaults(params_cls)
     values, source = dict(defaults), {}
     if args.config is not None:
         for k, v in _read_config(args.config, defaults).items():
@@ -177,7 +178,7 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
     for field in defaults:
         text = getattr(args, field)
         if text is not None:
-            values[field] = _convert(field, text, defaults[field], docs[field])
+            values[field] = _convert(text, defaults[field])
             source.pop(field, None)
     try:
         return params_cls(**values)

@@ -1,14 +1,20 @@
 """`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus and Verilator."""
 
+import contextlib
+import io
 import json
+import multiprocessing
 import subprocess
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from kfgen.hdl.arith.float.params import OPS, FpuParams
-from kfgen.sim.toolchain import iverilog, run_verilator
+from kfgen.hdl.arith.float.params import (CLOCK_MHZ, OPS, FpuParams, cycles_per_op_range,
+                                         ranges_text, stages_range)
+from kfgen.hdl.describe import ParamError
+from kfgen.sim.toolchain import iverilog, lint
 
-from conftest import kfgen
+from conftest import ROOT, kfgen
 
 
 @pytest.mark.parametrize("args,param", [
@@ -29,6 +35,73 @@ def test_bad_parameters_exit_2_with_one_line(tmp_path, args, param):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"kfgen: error: {param}:"), proc.stderr
     assert "Traceback" not in proc.stderr and not list(tmp_path.iterdir())
+
+
+def _error(tmp_path, *args):
+    proc = kfgen("fpu", *args, "-o", tmp_path, check=False)
+    assert proc.returncode == 2 and not list(tmp_path.iterdir())
+    return proc.stderr.strip()
+
+
+def test_count_errors_quote_the_range_functions(tmp_path):
+    """Stages 0, one too many and ``x``, and cycles per operation one too many for binary32
+    div: every error gives the range :func:`stages_range` or :func:`cycles_per_op_range` gives."""
+    lo, hi = stages_range("add", "binary32")
+    for value in (lo - 1, hi + 1):
+        assert _error(tmp_path, "--stages", value) == \
+            f"kfgen: error: --stages: must be an integer in {lo}..{hi} for add binary32, not {value}"
+    assert _error(tmp_path, "--stages", "x") == \
+        f"kfgen: error: --stages: must be an integer in {lo}..{hi} for add binary32, not 'x'"
+    config = tmp_path.parent / "stages_x.toml"
+    config.write_text('stages = "x"\n')
+    assert _error(tmp_path, "--config", config) == f"kfgen: error: --stages: must be an integer in " \
+                                                   f"{lo}..{hi} for add binary32, not 'x' (from {config})"
+
+    lo, hi = cycles_per_op_range("div", "binary32")
+    assert _error(tmp_path, "--op", "div", "--cycles-per-op", hi + 1) == \
+        f"kfgen: error: --cycles-per-op: must be an integer in {lo}..{hi} for div binary32, not {hi + 1}"
+    assert _error(tmp_path, "--op", "div", "--cycles-per-op", "x") == \
+        f"kfgen: error: --cycles-per-op: must be an integer in {lo}..{hi} for div binary32, not 'x'"
+    lo, hi = stages_range("div", "binary32", "ftz", 4)
+    assert _error(tmp_path, "--op", "div", "--subnormals", "ftz", "--cycles-per-op", 4, "--stages", hi + 1) == \
+        f"kfgen: error: --stages: must be an integer in {lo}..{hi} for div binary32, ftz, cycles_per_op 4, " \
+        f"not {hi + 1}"
+
+
+def test_help_and_readme_quote_the_ranges_and_the_design_clock():
+    help_text = " ".join(kfgen("fpu", "--help").stdout.split())
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    for text in (help_text, readme):
+        assert f"in binary32: {ranges_text('stages')}" in text
+        assert f"in binary32: {ranges_text('cycles_per_op')}" in text
+        assert f"designed for {CLOCK_MHZ} MHz" in text
+
+
+@pytest.mark.parametrize("fmt", ["binary16", "binary32", "e3m2", "e15m64"])
+@pytest.mark.parametrize("op", list(OPS))
+def test_ranges_are_what_the_units_build(op, fmt):
+    """The ranges' ends build, one past them does not, in the core and in the unit."""
+    unit_cls = type(FpuParams(op=op, format=fmt).build())
+    k_lo, k_hi = cycles_per_op_range(op, fmt)
+    assert k_lo == 1 and (k_hi > 1) == OPS[op][2]
+    if OPS[op][2]:
+        with pytest.raises(ValueError, match="cycles_per_op"):
+            unit_cls(fmt, cycles_per_op=k_hi + 1)
+    with pytest.raises(match=f"in 1..{k_hi} for {op} {fmt}, not {k_hi + 1}"):
+        FpuParams(op=op, format=fmt, cycles_per_op=k_hi + 1)
+    for subnormals in ("ieee", "ftz"):
+        for k in sorted({k_lo, (k_lo + k_hi) // 2, k_hi}):
+            lo, hi = stages_range(op, fmt, subnormals, k)
+            assert 1 <= lo < hi
+            for stages in (lo, hi):
+                assert FpuParams(op=op, format=fmt, subnormals=subnormals, stages=stages,
+                                 cycles_per_op=k).build().latency == stages
+            kw = {"cycles_per_op": k} if OPS[op][2] else {}
+            with pytest.raises(ValueError, match="stages"):
+                unit_cls(fmt, subnormals=subnormals, stages=hi + 1, **kw)
+            for stages in (lo - 1, hi + 1):
+                with pytest.raises(match=f"in {lo}..{hi} for {op} {fmt}"):
+                    FpuParams(op=op, format=fmt, subnormals=subnormals, stages=stages, cycles_per_op=k)
 
 
 @pytest.mark.parametrize("op", list(OPS))
@@ -66,6 +139,40 @@ def test_deterministic(tmp_path):
         assert str(tmp_path) not in (a / name).read_text()
 
 
+#: Spellings of one core, by the parameters it records.
+SPELLINGS = {
+    ("mul", "binary32", "ftz"): [
+        ["--op", "mul", "--format", "binary32", "--subnormals", "ftz"],
+        ["--op", "MUL", "--format", "E8M23", "--subnormals", "FTZ"],
+        ["--op", "Mul", "--format", "e8m23", "--subnormals", "Ftz"],
+        ["--op", "mul", "--format", "BINARY32", "--subnormals", "ftz"],
+        ["--config", 'op = "MUL"\nformat = "E8M23"\nsubnormals = "FTZ"\n']],
+    ("div", "bfloat16", "ieee"): [
+        ["--op", "div", "--format", "bfloat16"], ["--op", "DIV", "--format", "e8m7"],
+        ["--op", "div", "--format", "E8M7", "--subnormals", "IEEE"], ["--op", "div", "--format", "BFloat16"]],
+    ("sqrt", "binary16", "ieee"): [["--op", "sqrt", "--format", "binary16"], ["--op", "sqrt", "--format", "e5m10"]],
+    ("i2f", "binary64", "ieee"): [["--op", "i2f", "--format", "binary64"], ["--op", "I2F", "--format", "E11M52"]],
+    ("fma", "e6m11", "ieee"): [["--op", "fma", "--format", "e6m11"], ["--op", "FMA", "--format", "E6M11"]],
+}
+
+
+@pytest.mark.parametrize("core", list(SPELLINGS), ids=["_".join(c) for c in SPELLINGS])
+def test_every_spelling_gives_the_same_bytes(tmp_path, core):
+    """Names are read whatever their case, and an eEmM that is a named format as that format:
+    the parameters, and so the files, record one spelling."""
+    outputs = []
+    for k, args in enumerate(SPELLINGS[core]):
+        if args[0] == "--config":
+            (tmp_path / "spelling.toml").write_text(args[1])
+            args = ["--config", tmp_path / "spelling.toml"]
+        out = tmp_path / str(k)
+        kfgen("fpu", *args, "--name", "u", "-o", out)
+        outputs.append({name: (out / name).read_bytes() for name in ("u.v", "u.vlt", "u.json")})
+    assert all(files == outputs[0] for files in outputs[1:])
+    recorded = json.loads(outputs[0]["u.json"])["parameters"]
+    assert (recorded["op"], recorded["format"], recorded["subnormals"]) == core
+
+
 @pytest.mark.parametrize("args", [["--op", "add"], ["--op", "mul"], ["--op", "fma"], ["--op", "div"],
                                   ["--op", "sqrt", "--cycles-per-op", "4"], ["--op", "i2f"], ["--op", "f2i"],
                                   ["--op", "add", "--subnormals", "ftz"]])
@@ -76,33 +183,61 @@ def test_icarus_compiles(tmp_path, args):
     assert ic.returncode == 0, ic.stderr
 
 
-def _min_stages(op):
-    return min(s for s in FpuParams(op=op).build().PLANS if s >= 1)
+#: Formats linted with every operation: the named ones, and eEmM across the widths the command
+#: line accepts (exponent 3..15 bits, fraction 2..64): the narrowest; significands mul takes in
+#: LUT rows alone (up to 8 bits: e4m3 to e5m7), in one multiplier block (e6m11), in several; a
+#: narrow exponent with a wide fraction, the reverse, and the widest.
+LINT_FORMATS = ("binary16", "bfloat16", "binary32", "binary64", "e3m2", "e4m3", "e5m5", "e6m6",
+                "e5m7", "e6m11", "e3m40", "e15m2", "e15m64")
+#: Formats also linted with ftz; with the fewest stages (the most logic between registers,
+#: where Yosys folds the most); with div and sqrt iterative.
+FTZ_FORMATS = ("binary32", "bfloat16", "e3m2", "e6m11")
+MIN_STAGES_FORMATS = ("binary32", "binary16", "e5m5", "e15m2")
+ITERATIVE_FORMATS = ("binary32", "binary64", "e3m2", "e15m64")
 
 
-#: Cores linted: every operation's default, then other formats (a constant exponent and a padded
-#: significand in i2f binary64, the split leading-zero count of fma), the fewest stages (the
-#: most logic between registers, where Yosys folds the most), ftz, and iterative cores.
-LINT_CONFIGS = {
-    **{op: ["--op", op] for op in OPS},
-    **{f"{op}_{fmt}": ["--op", op, "--format", fmt] for op, fmt in [
-        ("add", "binary16"), ("fma", "binary16"), ("sqrt", "binary16"),
-        ("mul", "binary64"), ("fma", "binary64"), ("div", "binary64"), ("i2f", "binary64"),
-        ("f2i", "binary64"), ("add", "e6m11"), ("fma", "e6m11"), ("sqrt", "e6m11")]},
-    **{f"{op}_min": ["--op", op, "--stages", str(_min_stages(op))]
-       for op in ("add", "mul", "fma", "div", "i2f", "f2i")},
-    **{f"{op}_ftz": ["--op", op, "--subnormals", "ftz"] for op in ("add", "mul", "fma", "div")},
-    "div_cpo4": ["--op", "div", "--cycles-per-op", "4"],
-    "div_cpo26": ["--op", "div", "--cycles-per-op", "26", "--format", "binary64"],
-    "sqrt_cpo4": ["--op", "sqrt", "--cycles-per-op", "4"],
-}
+def _lint_configs(fmt):
+    """id -> ``kfgen fpu`` arguments of the cores linted in ``fmt``: every operation's default;
+    in samples of formats ftz, the fewest stages, and div and sqrt at their most cycles per
+    operation (one recurrence step a cycle), in binary32 also at two and four."""
+    configs = {}
+    for op in OPS:
+        args = ["--op", op, "--format", fmt]
+        configs[op] = args
+        if fmt in FTZ_FORMATS:
+            configs[f"{op}_ftz"] = args + ["--subnormals", "ftz"]
+        if fmt in MIN_STAGES_FORMATS:
+            configs[f"{op}_min"] = args + ["--stages", str(stages_range(op, fmt)[0])]
+        if OPS[op][2] and fmt in ITERATIVE_FORMATS:
+            for k in ([2, 4] if fmt == "binary32" else []) + [cycles_per_op_range(op, fmt)[1]]:
+                configs[f"{op}_cpo{k}"] = args + ["--cycles-per-op", str(k)]
+    return configs
 
 
-@pytest.mark.parametrize("args", list(LINT_CONFIGS.values()), ids=list(LINT_CONFIGS))
-def test_verilator_lint_clean(tmp_path, args):
+def _generate_and_lint(args, out):
+    """Warnings of ``verilator -Wall --lint-only`` with the core's own waivers on the core that
+    ``kfgen fpu ARGS`` writes into ``out`` (in a worker process)."""
+    from kfgen.gen.cli import main
+
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+        if main(["fpu", *args, "--name", "u", "-o", out]) != 0:
+            return [err.getvalue().strip()]
+    rc, messages = lint(f"{out}/u.v")  # what `kfgen lint` runs
+    return messages or ([f"verilator exit status {rc}"] if rc else [])
+
+
+@pytest.fixture(scope="module")
+def lint_pool():
+    # Processes, not threads: generating a core is Python under the GIL. Two, for two cores.
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield pool
+
+
+@pytest.mark.parametrize("fmt", LINT_FORMATS)
+def test_verilator_lint_clean(tmp_path, lint_pool, fmt):
     """``verilator -Wall --lint-only`` with the core's own waivers: not one warning."""
-    kfgen("fpu", *args, "--name", "u", "-o", tmp_path)
-    proc = run_verilator(["--lint-only", "-Wall", str(tmp_path / "u.vlt"), str(tmp_path / "u.v"),
-                          "--top-module", "u"])
-    messages = [line for line in proc.stderr.splitlines() if line.startswith("%")]
-    assert proc.returncode == 0 and not messages, "\n".join(messages)
+    configs = _lint_configs(fmt)
+    jobs = {key: lint_pool.submit(_generate_and_lint, args, str(tmp_path / key)) for key, args in configs.items()}
+    failed = {key: job.result() for key, job in jobs.items() if job.result()}
+    assert not failed, "\n".join(f"kfgen fpu {' '.join(configs[k])}:\n  " + "\n  ".join(m)
+                                  for k, m in failed.items())

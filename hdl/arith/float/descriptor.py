@@ -4,7 +4,7 @@ and ``make bench`` see it."""
 from __future__ import annotations
 
 from ...describe import CoreDescriptor, Doc
-from .params import MAX_CYCLES_PER_OP, OPS, FpuParams
+from .params import CLOCK_MHZ, OPS, FpuParams, ranges_text
 
 __all__ = ["CORE"]
 
@@ -12,18 +12,23 @@ __all__ = ["CORE"]
 def _docs() -> dict[str, Doc]:
     return {
         "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
-                  "float to int32 (round to nearest even, saturating)", "", "one of " + ", ".join(OPS)),
+                  "float to int32 (round to nearest even, saturating)", "",
+                  "one of " + ", ".join(OPS) + " (any case)"),
         "format": Doc("floating-point format", "",
                       "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
-                      "and M stored fraction bits (2..64), e.g. e6m11"),
+                      "and M stored fraction bits (2..64), e.g. e6m11 (any case; an eEmM that is a "
+                      "named format is recorded by its name: e8m23 is binary32)"),
         "subnormals": Doc("ieee: gradual underflow; ftz: subnormal inputs and results flushed to zero "
-                          "(smaller, as vendor IP)", "", "ieee or ftz"),
-        "stages": Doc("pipeline register stages = latency", "cycles",
-                      "a count the unit can place (its error names the range); the unit's default "
-                      "meets 100 MHz on ECP5 for binary32 (iterative div/sqrt: slower the fewer cycles_per_op)"),
+                          "(smaller, as vendor IP)", "", "ieee or ftz (any case)"),
+        "stages": Doc("pipeline register stages = latency; the default is designed for "
+                      f"{CLOCK_MHZ} MHz on an ECP5-85 in binary32 (iterative div/sqrt: the "
+                      "recurrence's block sets the clock, slower the fewer cycles_per_op)", "cycles",
+                      "an integer in a range that depends on op, format, subnormals and cycles_per_op; "
+                      f"in binary32: {ranges_text('stages')}"),
         "cycles_per_op": Doc("div and sqrt: cycles per operation; 1 fully pipelined, K > 1 iterative "
                              "and smaller, with i_ready backpressure", "cycles",
-                             f"integer 1..{MAX_CYCLES_PER_OP}; 1 for other ops"),
+                             "an integer in a range that depends on op and format; in binary32: "
+                             f"{ranges_text('cycles_per_op')}; 1 for other ops"),
         "name": Doc("top-level module and file name", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }

@@ -41,9 +41,12 @@ def _split(width_a: int, width_b: int):
                   if rows <= LUT_ROWS)
     lut = {op for k, (_, op) in enumerate(fits) if sum(r for r, _ in fits[:k + 1]) <= LUT_ROWS}
     end_a = cut_a if "a" in lut else width_a
+    if not end_a:
+        # a is all rows, each of the whole of b: there are no blocks, so no block bits of b
+        # (nor rows of b, which would take a's block bits).
+        return 0, 0, range(width_a), range(0)
     end_b = cut_b if "b" in lut else width_b
-    # (b's rows take a's block bits only: none when a is all rows.)
-    return end_a, end_b, range(end_a, width_a), range(end_b, width_b if end_a else end_b)
+    return end_a, end_b, range(end_a, width_a), range(end_b, width_b)
 
 
 def product_rows(a, b) -> dict:

@@ -1,6 +1,11 @@
+# amaranth: UnusedElaboratable=no
+# (Units built here to be asked their stage plans, or by a parameter check, are never
+# elaborated: Amaranth's public linter option, for what this file creates only.)
 """Parameters of the standalone ``kfgen fpu`` core: which unit, which format, how pipelined.
 
-Pure Python apart from :meth:`FpuParams.build`, which imports the chosen unit.
+The ranges of the counts are read from the units themselves (:func:`stages_range`,
+:func:`cycles_per_op_range`), so validation, ``kfgen fpu --help`` and the README (which quotes
+:func:`ranges_text` and :data:`CLOCK_MHZ`) cannot drift from what the units build.
 """
 
 from __future__ import annotations
@@ -9,8 +14,10 @@ from dataclasses import dataclass
 
 from ...describe import ParamError, check_name
 from .format import FLAG_NAMES, FloatFormat
+from .timing import CLOCK_MHZ
 
-__all__ = ["FpuParams", "OPS"]
+__all__ = ["FpuParams", "OPS", "CLOCK_MHZ", "cycles_per_op_range", "stages_range",
+           "ranges_text"]
 
 #: op -> (operand ports, result is an integer, has cycles_per_op)
 OPS = {
@@ -23,12 +30,67 @@ OPS = {
     "i2f": (("i_a",), False, False),
     "f2i": (("i_a",), True, False),
 }
-MAX_CYCLES_PER_OP = 64
+
+
+def _unit_class(op: str):
+    from .add import FloatAdd, FloatSub
+    from .div import FloatDiv
+    from .f2i import FloatToInt
+    from .fma import FloatFMA
+    from .i2f import IntToFloat
+    from .mul import FloatMul
+    from .sqrt import FloatSqrt
+    return {"add": FloatAdd, "sub": FloatSub, "mul": FloatMul, "div": FloatDiv, "sqrt": FloatSqrt,
+            "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt}[op]
+
+
+def _unit(op: str, fmt, subnormals: str, stages: int | None, cycles_per_op: int):
+    kw = {"cycles_per_op": cycles_per_op} if OPS[op][2] else {}
+    unit = _unit_class(op)(fmt, subnormals=subnormals, stages=stages, **kw)
+    return unit
+
+
+def cycles_per_op_range(op: str, fmt) -> tuple[int, int]:
+    """``(lo, hi)``, the cycles per operation a core of ``op`` in ``fmt`` accepts: for div and
+    sqrt 1 to the recurrence's steps (one step a cycle), for the others 1."""
+    if not OPS[op][2]:
+        return 1, 1
+    return 1, _unit_class(op).iterations(FloatFormat.parse(fmt))
+
+
+def stages_range(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1) -> tuple[int, int]:
+    """``(lo, hi)``, the register stages a core of ``op`` in ``fmt`` accepts: those the unit
+    can place, except none (a core has a clock: at least its output is registered)."""
+    plans = _unit(op, fmt, subnormals, None, cycles_per_op).PLANS
+    return max(1, min(plans)), max(plans)
+
+
+def ranges_text(param: str, fmt="binary32") -> str:
+    """``"add 1..8, sub 1..8, ..."``: the range of ``param`` (``"stages"``, pipelined and ieee,
+    or ``"cycles_per_op"``) for each op in ``fmt`` that has more than one value, as the help
+    and the README quote it."""
+    ranges = {op: stages_range(op, fmt) if param == "stages" else cycles_per_op_range(op, fmt)
+              for op in OPS}
+    return ", ".join(f"{op} {lo}..{hi}" for op, (lo, hi) in ranges.items() if hi > lo)
+
+
+def _canonical(value):
+    """Case and surrounding spaces do not matter in a name."""
+    return value.strip().lower() if isinstance(value, str) else value
+
+
+def _in_range(value, lo: int, hi: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and lo <= value <= hi
 
 
 @dataclass(frozen=True)
 class FpuParams:
     """Generation parameters of one floating-point unit as a core.
+
+    Names are read whatever their case (``--op MUL --format E8M23``) and recorded in their
+    canonical spelling: lowercase, and a format by its standard name when it has one (``e8m23``
+    is ``binary32``, ``e5m10`` ``binary16``, ``e11m52`` ``binary64``, ``e8m7`` ``bfloat16``),
+    so every spelling of one core gives the same files.
 
     Parameters
     ----------
@@ -39,12 +101,20 @@ class FpuParams:
     subnormals : str
         ``ieee`` (gradual underflow) or ``ftz`` (flush subnormal inputs and results to zero).
     stages : int or None
-        Register stages (the latency in cycles); ``None`` picks the unit's default, and is
+        Register stages (the latency in cycles), in :func:`stages_range`; ``None`` picks the
+        unit's default, designed for :data:`CLOCK_MHZ` MHz on an ECP5-85 in binary32, and is
         replaced by that number, so the parameters record what was built.
     cycles_per_op : int
-        div and sqrt only: 1 = fully pipelined, K > 1 = iterative, one operation per K cycles.
+        In :func:`cycles_per_op_range`: for div and sqrt, 1 = fully pipelined, K > 1 =
+        iterative, one operation per K cycles; 1 for the others.
     name : str
         Top-level module name.
+
+    Raises
+    ------
+    ParamError
+        On a bad value; a count out of its range says ``must be an integer in LO..HI for
+        <op> <format>``.
     """
 
     op: str = "add"
@@ -55,34 +125,31 @@ class FpuParams:
     name: str = "fpu"
 
     def __post_init__(self):
-        if self.op not in OPS:
+        op, subnormals = _canonical(self.op), _canonical(self.subnormals)
+        if op not in OPS:
             raise ParamError("op", f"must be one of {', '.join(OPS)}, not {self.op!r}")
         try:
-            FloatFormat.parse(self.format)
+            fmt = FloatFormat.parse(self.format).name
         except ValueError as exc:
             raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM "
                                           f"(exponent 3..15 bits, fraction 2..64 bits): {exc}") from None
-        if self.subnormals not in ("ieee", "ftz"):
+        if subnormals not in ("ieee", "ftz"):
             raise ParamError("subnormals", f"must be ieee or ftz, not {self.subnormals!r}")
-        for key in ("stages", "cycles_per_op"):
-            v = getattr(self, key)
-            if (isinstance(v, bool) or not isinstance(v, int)) and not (key == "stages" and v is None):
-                raise ParamError(key, f"must be an integer, not {v!r}")
-        if self.stages is not None and self.stages < 1:
-            # a core has a clock: at least its output is registered
-            raise ParamError("stages", f"must be at least 1 for a generated core, not {self.stages!r}")
-        if not 1 <= self.cycles_per_op <= MAX_CYCLES_PER_OP:
-            raise ParamError("cycles_per_op", f"must be in 1..{MAX_CYCLES_PER_OP}, not {self.cycles_per_op!r}")
-        if self.cycles_per_op != 1 and not OPS[self.op][2]:
-            raise ParamError("cycles_per_op", f"applies to div and sqrt only; {self.op} takes one "
-                                                 "operation per clock (leave it at 1)")
+        for key, value in (("op", op), ("format", fmt), ("subnormals", subnormals)):
+            object.__setattr__(self, key, value)
+
+        lo, hi = cycles_per_op_range(op, fmt)
+        if not _in_range(self.cycles_per_op, lo, hi):
+            hint = "" if OPS[op][2] else ": only div and sqrt are iterative"
+            raise ParamError("cycles_per_op", f"must be an integer in {lo}..{hi} for {op} {fmt}, "
+                                                 f"not {self.cycles_per_op!r}{hint}")
+        lo, hi = stages_range(op, fmt, subnormals, self.cycles_per_op)
+        if self.stages is not None and not _in_range(self.stages, lo, hi):
+            what = f"{op} {fmt}" + (", ftz" if subnormals == "ftz" else "") \
+                + (f", cycles_per_op {self.cycles_per_op}" if self.cycles_per_op > 1 else "")
+            raise ParamError("stages", f"must be an integer in {lo}..{hi} for {what}, not {self.stages!r}")
         check_name(self.name)
-        try:
-            unit = self.build()
-        except ValueError as exc:  # the unit's own check, e.g. a stage count it cannot place
-            key = "cycles_per_op" if "cycles_per_op" in str(exc) else "stages"
-            raise ParamError(key, str(exc)) from None
-        object.__setattr__(self, "stages", unit.stages)
+        object.__setattr__(self, "stages", self.build().stages)
 
     @property
     def fmt(self) -> FloatFormat:
@@ -90,21 +157,7 @@ class FpuParams:
 
     def build(self):
         """The Amaranth unit for these parameters."""
-        from .add import FloatAdd, FloatSub
-        from .div import FloatDiv
-        from .f2i import FloatToInt
-        from .fma import FloatFMA
-        from .i2f import IntToFloat
-        from .mul import FloatMul
-        from .sqrt import FloatSqrt
-        kw = {"subnormals": self.subnormals, "stages": self.stages}
-        cls = {"add": FloatAdd, "sub": FloatSub, "mul": FloatMul, "div": FloatDiv, "sqrt": FloatSqrt,
-               "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt}[self.op]
-        if OPS[self.op][2]:
-            kw["cycles_per_op"] = self.cycles_per_op
-        unit = cls(self.fmt, **kw)
-        unit._MustUse__silence = True  # validation builds one without elaborating it
-        return unit
+        return _unit(self.op, self.format, self.subnormals, self.stages, self.cycles_per_op)
 
     def field_list(self, port: str):
         """Packed fields of a data port (manifest): floats carry ``format`` instead of ``frac_bits``."""

@@ -22,11 +22,15 @@ from collections.abc import Mapping
 
 from .format import FloatFormat
 
-__all__ = ["LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
+__all__ = ["CLOCK_MHZ", "LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
            "prepare_delay", "round_delays", "StagePlans"]
 
+#: The clock the default stage counts are designed for: an ECP5-85, binary32. The units placed
+#: by this model meet it by the model; add, sub, mul and fma have fixed defaults, measured
+#: above it (README, Performance).
+CLOCK_MHZ = 100
 LUT_NS = 1.2
-BUDGET_NS = 9.5  # a 100 MHz clock less a margin for placement
+BUDGET_NS = 1000 / CLOCK_MHZ - 0.5  # less a margin for placement
 
 
 def lut_delay(levels: float) -> float:
