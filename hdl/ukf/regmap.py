@@ -46,8 +46,7 @@ from typing import NamedTuple
 from ..describe import ParamError
 
 __all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map",
-           "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS",
-           "STEPS"]
+           "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS"]
 
 #: ID.core of the UKF (ASCII 'U').
 CORE_ID = 0x55
@@ -58,8 +57,6 @@ BUS_DATA_WIDTH = 32
 BUS_ID_WIDTH = 4
 FIELD_ACCESS = ("ro", "rw", "w1c", "w1p")
 BLOCK_ACCESS = ("ro", "rw")
-#: CTRL.step values.
-STEPS = ("sig_gen", "predict", "update")
 
 _WORD = BUS_DATA_WIDTH // 8
 
@@ -139,10 +136,6 @@ class Register:
     @property
     def end(self) -> int:
         return self.offset + self.size
-
-    @property
-    def reset(self) -> int:
-        return sum(f.reset << f.lsb for f in self.fields)
 
     def field(self, name: str) -> Field:
         for f in self.fields:

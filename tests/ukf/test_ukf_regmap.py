@@ -12,7 +12,7 @@ from kfgen.gen.regdoc import documents, map_manifest
 from kfgen.hdl.describe import ParamError
 from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
 from kfgen.hdl.ukf.params import UkfParams
-from kfgen.hdl.ukf.regmap import ukf_map
+from kfgen.hdl.ukf.regmap import Field, Memory, Register, ukf_map
 
 CONFIGS = {
     "default": {},
@@ -171,6 +171,19 @@ def test_default_map():
     assert wide["P"].address(3, 2, 1) == 0x2000 + 7 * 8 + (3 * 7 + 2) * 8 + 4
     small = ukf_map(UkfParams(n=2, m=1, nw=1, nv=1))
     assert (small.address_width, small.buffer_base, small.memories[-1].end - small.buffer_base) == (9, 0x100, 51 * 4)
+
+
+def test_declarations_that_cannot_be_decoded_are_refused():
+    with pytest.raises(ValueError, match="overlaps"):
+        Register("A", 0, 32, "", (Field("a", 0, 4, "rw", ""), Field("b", 3, 1, "rw", "")))
+    with pytest.raises(ValueError, match="straddles"):
+        Register("A", 0, 64, "", (Field("a", 28, 8, "ro", ""),))
+    with pytest.raises(ValueError, match="aligned"):
+        Register("A", 4, 64, "", ())
+    with pytest.raises(ValueError, match="does not fit"):
+        Field("a", 0, 2, "rw", "", reset=4)
+    with pytest.raises(ValueError, match="access"):
+        Memory("m", 0, (1, 1), "binary32", 1, "w1c", "")
 
 
 # ------------------------------------------------------------------------------ products
