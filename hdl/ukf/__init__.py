@@ -1,0 +1,1 @@
+"""The unscented Kalman filter core (Soh & Wu): parameters and its register and memory map."""

@@ -1,0 +1,116 @@
+"""Parameters of the UKF core, validated once (pure Python, no Amaranth).
+
+Sizes follow the issue's command line ``--states n --observations m --process-noise nw
+--measurement-noise nv``: x^a = [x; w; v] has M = n + nw + nv entries (eqs. 3-4). The defaults
+are the chapter's nanosatellite filter, "7, 6, 7, 6, M = 20" read in that option order:
+n = 7 states, m = 6 observations, nw = 7 process-noise terms (one per state), nv = 6
+measurement-noise terms (one per observation, so R is m x m); the chapter's eq. (41) reads
+the same way. Any reading of the four numbers gives M = 20.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from ..arith.float.format import FloatFormat
+from ..describe import ParamError, check_name
+
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX"]
+
+#: Largest n, m, nw, nv: the ID register holds each in 8 bits.
+SIZE_MAX = 255
+#: Widest float format: one element is at most two 32-bit bus words.
+FORMAT_WIDTH_MAX = 64
+#: Widest AXI address the core accepts (a 32-bit processor's address space).
+ADDRESS_WIDTH_MAX = 32
+
+_SIZES = (("n", "states"), ("m", "observations"), ("nw", "process-noise terms"),
+          ("nv", "measurement-noise terms"))
+
+
+@dataclass(frozen=True)
+class UkfParams:
+    """Generation parameters of the UKF core.
+
+    Parameters
+    ----------
+    n, m, nw, nv : int
+        States, observations, process-noise and measurement-noise terms, 1..255 each.
+    pes : int
+        Processing elements P (FMA units working in parallel), 1..M.
+    format : str
+        Float format of every buffer word: ``binary16``, ``bfloat16``, ``binary32``,
+        ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
+    w0 : float
+        Weight W_0 of the centre sigma point, 0 <= W0 < 1 (eq. 5).
+    irq : bool
+        Whether the core has an ``irq`` output (and an IRQ_ENABLE register).
+    address_width : int or None
+        Width of the AXI address; ``None`` is replaced by the smallest that holds the map
+        (:func:`kfgen.hdl.ukf.regmap.ukf_map`). A wider one leaves the rest of the aperture
+        unmapped (SLVERR).
+    name : str
+        Top-level module name.
+
+    Raises
+    ------
+    ParamError
+        Naming the first bad parameter and what it may be.
+    """
+
+    n: int = 7
+    m: int = 6
+    nw: int = 7
+    nv: int = 6
+    pes: int = 1
+    format: str = "binary32"
+    w0: float = 0.0
+    irq: bool = True
+    address_width: int | None = None
+    name: str = "ukf"
+
+    def __post_init__(self):
+        for key, what in _SIZES:
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= SIZE_MAX:
+                raise ParamError(key, f"the number of {what} must be an integer in 1..{SIZE_MAX}, not {value!r}")
+        M = self.M
+        if isinstance(self.pes, bool) or not isinstance(self.pes, int) or not 1 <= self.pes <= M:
+            raise ParamError("pes", f"must be an integer in 1..M = {M} (M = n + nw + nv), not {self.pes!r}")
+        try:
+            fmt = FloatFormat.parse(self.format)
+        except ValueError as exc:
+            raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
+        if fmt.width > FORMAT_WIDTH_MAX:
+            raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
+                                       f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
+        object.__setattr__(self, "format", fmt.name)
+        if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
+                or not 0 <= self.w0 < 1:
+            raise ParamError("w0", f"must be a number with 0 <= W0 < 1, not {self.w0!r}")
+        if not isinstance(self.irq, bool):
+            raise ParamError("irq", f"must be true or false, not {self.irq!r}")
+        aw = self.address_width
+        if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
+            raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
+        check_name(self.name)
+        from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
+        object.__setattr__(self, "address_width", ukf_map(self).address_width)
+
+    @property
+    def M(self) -> int:
+        """Length of the augmented state (eq. 3)."""
+        return self.n + self.nw + self.nv
+
+    @property
+    def N(self) -> int:
+        """Number of sigma points of the spherical simplex set (M + 2)."""
+        return self.M + 2
+
+    @property
+    def fmt(self) -> FloatFormat:
+        return FloatFormat.parse(self.format)
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
