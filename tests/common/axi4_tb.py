@@ -179,8 +179,8 @@ class TB:
     async def _next(self):
         await FallingEdge(self.dut.clk)
 
-    async def raw_write(self, addr, beats, strbs=None, awlen=None, size=2, burst=1, awid=3):
-        """One write burst: AW, then the beats back to back; returns bresp."""
+    async def raw_write(self, addr, beats, strbs=None, awlen=None, size=2, burst=1, awid=3, wait_b=True):
+        """One write burst: AW, then the beats back to back; returns bresp (``wait_b``)."""
         dut = self.dut
         strbs = strbs or [0xF] * len(beats)
         await self._next()
@@ -207,6 +207,8 @@ class TB:
                 await ReadOnly()
             await self._next()
         dut.s_axi_wvalid.value = 0
+        if not wait_b:
+            return None
         await ReadOnly()
         while dut.s_axi_bvalid.value != 1:
             await self._next()
@@ -366,6 +368,24 @@ async def raw_cases(dut):
     assert await tb.raw_read(0x0FF8, 3) == [(0, AxiResp.SLVERR)] * 4
     assert await tb.raw_read(0x0FF8, 1) == [(7, AxiResp.OKAY), (8, AxiResp.OKAY)]
     assert await tb.raw_read(SCRATCH, 1) == before
+    # B held: the next burst's last beat waits for it, and both answers come, in order
+    dut.s_axi_bready.value = 0
+    await tb.raw_write(MEM, [1], awid=1, wait_b=False)
+    second = cocotb.start_soon(tb.raw_write(MEM + 4, [2, 3], awid=2, wait_b=False))
+    for _ in range(8):
+        await FallingEdge(dut.clk)
+    await ReadOnly()
+    assert not second.done() and dut.s_axi_bvalid.value == 1 and int(dut.s_axi_bid.value) == 1
+    await FallingEdge(dut.clk)
+    dut.s_axi_bready.value = 1
+    answers = []
+    while len(answers) < 2:
+        await ReadOnly()
+        if dut.s_axi_bvalid.value == 1:
+            answers.append((int(dut.s_axi_bid.value), AxiResp(int(dut.s_axi_bresp.value))))
+        await FallingEdge(dut.clk)
+    assert answers == [(1, AxiResp.OKAY), (2, AxiResp.OKAY)] and second.done(), answers
+    assert await tb.raw_read(MEM, 2) == [(1, AxiResp.OKAY), (2, AxiResp.OKAY), (3, AxiResp.OKAY)]
     # the reserved burst type 3 and a size wider than the bus
     for burst, size in [(3, 2), (1, 3)]:
         assert await tb.raw_write(MEM, [9], burst=burst, size=size) == AxiResp.SLVERR
