@@ -179,10 +179,26 @@ def unused_aliases(verilog: str) -> list[str]:
         (expr,) = rhs[name]
         if _WIRING.sub("", expr):
             continue  # logic, not a renaming
-        sources = {_plain(n) for n in _IDENT.findall(re.sub(r"\[[^\]]*\]|\d+'\w+", " ", expr))}
-        if all(reads[src] >= 2 or _inverted_copy(src, rhs, reads) for src in sources):
+        if all(_read_elsewhere(src, kinds, rhs, reads) for src in _sources(expr)):
             aliases.append(name)
     return sorted(aliases)
+
+
+def _sources(expr: str) -> set[str]:
+    return {_plain(n) for n in _IDENT.findall(re.sub(r"\[[^\]]*\]|\d+'\w+", " ", expr))}
+
+
+def _read_elsewhere(src: str, kinds: dict, rhs: dict, reads, seen: frozenset = frozenset()) -> bool:
+    """The net ``src`` reaches logic other than the alias that reads it: it is read twice, or it
+    is itself a wire that only renames nets read elsewhere (a port forwarded through a submodule
+    gives a chain of names, ``assign front_wdata = front_bus_wdata; assign front_bus_wdata =
+    wdata;``, and the writer may leave the end of the chain unread)."""
+    if reads[src] >= 2 or _inverted_copy(src, rhs, reads):
+        return True
+    exprs = rhs.get(src, ())
+    if src in seen or kinds.get(src) != {"wire"} or len(exprs) != 1 or _WIRING.sub("", exprs[0]):
+        return False
+    return all(_read_elsewhere(s, kinds, rhs, reads, seen | {src}) for s in _sources(exprs[0]))
 
 
 def _inverted_copy(src: str, rhs: dict, reads) -> bool:
