@@ -38,6 +38,21 @@ def _first(hits, values, default=0):
     return v
 
 
+def _signals(m, name, exprs):
+    """One signal per expression (so that each is built once, however often it is used)."""
+    sigs = [Signal(name=f"{name}{i}") for i in range(len(exprs))]
+    m.d.comb += [s.eq(e) for s, e in zip(sigs, exprs)]
+    return sigs
+
+
+def _prefix_or(m, bank, hits):
+    """For each lane, whether a lane before it hits."""
+    out = [Signal(name=f"b{bank}_prior{i}") for i in range(len(hits))]
+    for i, o in enumerate(out):
+        m.d.comb += o.eq(0 if i == 0 else out[i - 1] | hits[i - 1])
+    return out
+
+
 class BankedMemory(wiring.Component):
     """Word ``a`` in bank ``a % banks`` at row ``a // banks``; each bank a RAM of two ports a
     cycle, each port one read or one write (a true dual-port block RAM: a port's read and write
@@ -83,51 +98,46 @@ class BankedMemory(wiring.Component):
         port_data = []
         selects = [(Signal(g.bank_bits, name=f"rd{i}_bank"), Signal(name=f"rd{i}_port"))
                    for i in range(len(rd))]
+        rows = [lane.addr.row for lane, _ in order]
+        is_write = [int(w) for _, w in order]
+        wdata = [lane.data if w else 0 for lane, w in order]
         for b in range(g.banks):
             words = self._init[b::g.banks]
             mem = memory.Memory(shape=unsigned(self._width), depth=g.rows,
                                 init=words + [0] * (g.rows - len(words)))
             m.submodules[f"bank{b}"] = mem
-            hits = [lane.en & (lane.addr.bank == b) for lane, _ in order]
-            p0_hit = Signal(name=f"b{b}_p0")
-            p0_row = Signal(g.row_bits, name=f"b{b}_p0_row")
-            p0_write = Signal(name=f"b{b}_p0_write")
-            m.d.comb += [
-                p0_hit.eq(_first(hits, [1] * len(hits))),
-                p0_row.eq(_first(hits, [lane.addr.row for lane, _ in order])),
-                p0_write.eq(_first(hits, [int(w) for _, w in order])),
-            ]
-            shared = []  # served by port 0
-            for (lane, w), hit, k in zip(order, hits, range(len(order))):
-                if w:
-                    first = hit
-                    for h in hits[:k]:
-                        first = first & ~h
-                    shared.append(first)
-                else:
-                    shared.append(hit & ~p0_write & (lane.addr.row == p0_row))
-            hits1 = [h & ~s for h, s in zip(hits, shared)]
-            p1_hit = Signal(name=f"b{b}_p1")
-            m.d.comb += p1_hit.eq(_first(hits1, [1] * len(hits1)))
+            hits = _signals(m, f"b{b}_hit", [lane.en & (lane.addr.bank == b) for lane, _ in order])
+            ports = []  # (hit, row, write, grants) of port 0, then port 1
+            for port in range(2):
+                hit = Signal(name=f"b{b}_p{port}")
+                row = Signal(g.row_bits, name=f"b{b}_p{port}_row")
+                write = Signal(name=f"b{b}_p{port}_write")
+                m.d.comb += [hit.eq(_first(hits, [1] * len(hits))),
+                             row.eq(_first(hits, rows)), write.eq(_first(hits, is_write))]
+                ports.append((hit, row, write, hits))
+                if port == 0:
+                    # port 0 serves its own lane and every read of the word it reads
+                    shared = _signals(m, f"b{b}_shared", [
+                        h & ~write & (r == row) if not w else h & ~prior
+                        for h, r, w, prior in zip(hits, rows, is_write, _prefix_or(m, b, hits))])
+                    hits = _signals(m, f"b{b}_hit1", [h & ~s for h, s in zip(hits, shared)])
             datas = []
-            for port, (hit, hs) in enumerate(((p0_hit, hits), (p1_hit, hits1))):
+            for hit, row, write, hs in ports:
                 rp = mem.read_port()
                 wp = mem.write_port()
-                row = p0_row if port == 0 else _first(hs, [lane.addr.row for lane, _ in order])
-                write = p0_write if port == 0 else _first(hs, [int(w) for _, w in order])
                 m.d.comb += [
                     rp.addr.eq(row), wp.addr.eq(row),
                     wp.en.eq(hit & write),
-                    wp.data.eq(_first([h & w for h, (_, w) in zip(hs, order)],
-                                      [lane.data if w else 0 for lane, w in order])),
+                    wp.data.eq(_first(hs, wdata)),
                 ]
                 datas.append(rp.data)
             port_data.append(Array(datas))
-            for (lane, w), s, i in zip(order, shared, read_index):
+            for (lane, w), s, i, h in zip(order, shared, read_index, ports[0][3]):
                 if not w:
-                    with m.If(lane.en & (lane.addr.bank == b)):
+                    with m.If(h):
                         m.d.sync += selects[i][1].eq(~s)
-        port_data = Array(port_data)
+        # every index covered: Verilator -Wall wants complete cases
+        port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - g.banks))
         for lane, (bank, port) in zip(rd, selects):
             m.d.sync += bank.eq(lane.addr.bank)
             m.d.comb += lane.data.eq(port_data[bank][port])

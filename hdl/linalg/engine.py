@@ -140,7 +140,8 @@ class Engine(wiring.Component):
         go = self.start & ~self.busy
         step = Signal.like(self.step)
         count = Signal(range(max(code.cycles) + 1))
-        last = Array(C(c, count.shape()) for c in code.cycles)
+        pad = (1 << len(step)) - len(code.cycles)  # every step index covered
+        last = Array(C(c, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
         for stream, _ in units:
             m.d.comb += [stream.start.eq(go), stream.step.eq(self.step)]
         m.d.sync += self.done.eq(0)

@@ -66,8 +66,9 @@ class InstructionStream(wiring.Component):
         idx = Signal(range(depth + 1))
         end = Signal(range(depth + 1))
         elapsed = Signal(layout.members["delta"])
-        bases = Array(C(b, range(depth + 1)) for b in img.bases)
-        ends = Array(C(e, range(depth + 1)) for e in img.ends)
+        pad = (1 << len(self.step)) - len(img.bases)  # every step index covered
+        bases = Array(C(b, range(depth + 1)) for b in img.bases + img.bases[-1:] * pad)
+        ends = Array(C(e, range(depth + 1)) for e in img.ends + img.ends[-1:] * pad)
         m.d.comb += [
             self.ins.eq(rp.data),
             self.fire.eq((idx != end) & (elapsed == rp.data.delta)),
