@@ -18,7 +18,7 @@ cycle as :mod:`.schedule` planned them, on its banked operand memory.
 
 from __future__ import annotations
 
-from amaranth.hdl import Array, C, Module, Signal
+from amaranth.hdl import Array, C, Module, ResetInserter, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -66,6 +66,9 @@ class Engine(wiring.Component):
     -------
     start : In(1)
     step : In(range(len(steps)))
+    halt : In(1)
+        Soft reset: the engine is idle the next cycle, nothing more is written (the memory
+        keeps what the step wrote so far), ``done`` does not rise. The status is kept.
     busy, done : Out(1)
     err_pivot, err_nan : Out(1)
     flags : Out(5)
@@ -84,7 +87,7 @@ class Engine(wiring.Component):
         self._code = compile_steps(self._scheds)
         w, size = self._fmt.width, self._layout.size
         super().__init__({
-            "start": In(1), "step": In(range(max(2, len(steps)))),
+            "start": In(1), "step": In(range(max(2, len(steps)))), "halt": In(1),
             "busy": Out(1), "done": Out(1), "err_pivot": Out(1), "err_nan": Out(1),
             "flags": Out(5),
             "mem_raddr": In(range(size)), "mem_rdata": Out(w),
@@ -108,13 +111,14 @@ class Engine(wiring.Component):
         units = []
         for name, img in code.streams.items():
             layout = instruction_layout(img.unit, g, code.widths)
-            stream = m.submodules[f"{name}_stream"] = InstructionStream(img, layout)
+            stream = InstructionStream(img, layout)
+            m.submodules[f"{name}_stream"] = ResetInserter(self.halt)(stream)
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
             else:
                 stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "copy": None}[img.unit]
                 unit = SharedUnit(img.unit, fmt, g, layout, stages=stages)
-            m.submodules[name] = unit
+            m.submodules[name] = ResetInserter(self.halt)(unit)  # no write in flight
             m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]
             units.append((stream, unit))
         reads = [lane for _, u in units for lane in u.rd]
@@ -145,7 +149,9 @@ class Engine(wiring.Component):
         for stream, _ in units:
             m.d.comb += [stream.start.eq(go), stream.step.eq(self.step)]
         m.d.sync += self.done.eq(0)
-        with m.If(go):
+        with m.If(self.halt):
+            m.d.sync += self.busy.eq(0)
+        with m.Elif(go):
             m.d.sync += [self.busy.eq(1), step.eq(self.step), count.eq(0),
                          self.err_pivot.eq(0), self.err_nan.eq(0), self.flags.eq(0)]
         with m.Elif(self.busy):
