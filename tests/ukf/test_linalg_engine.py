@@ -164,3 +164,43 @@ def test_engine_verilog_lint(tmp_path):
     except ToolMissing as e:
         pytest.skip(str(e))
     assert rc == 0 and not messages, "\n".join(messages)
+
+
+def test_engine_generic_program():
+    """Any program of the IR, not only the UKF's: descending and mixed strides, accumulations
+    split into segments, mirrored results of every unit, chains between units, a NaN from a
+    square root reaching a checked result (err_nan), on P = 2 with bank conflicts."""
+    from types import SimpleNamespace
+
+    from kfgen.hdl.arith.float.format import FloatFormat
+    from kfgen.hdl.linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
+
+    fmt = FloatFormat.parse("binary32")
+    lay = Layout()
+    v = lay.add("v", 1, 24, "bus")
+    w = lay.add("w", 1, 24)
+    one = lay.const("one", to_words(fmt, [1.0]))(0, 0)
+    prog = Program("mix", lay, fmt)
+    V, W = (lambda i: v(0, i)), (lambda i: w(0, i))
+    prog.emit(Dot(W(0), V(0), [(V(1), V(2), False), (V(3), V(4), True), (V(5), V(6), False)]))
+    prog.emit(Dot((W(1), W(2)), None, [(V(20 - k), V(k), k % 3 == 0) for k in range(9)]))
+    prog.emit(Div((W(3), W(4)), V(7), V(8), "pivot"))
+    prog.emit(Sqrt(W(5), V(11)))  # a negative operand: NaN
+    prog.emit(Copy((W(6), W(7)), W(0)))
+    prog.emit(Dot(W(8), W(0), [(W(1), W(3), True), (one, W(6), False)]))
+    prog.emit(Sqrt((W(9), W(10)), W(4)))
+    for i in range(6):
+        prog.emit(Dot(W(11 + i), V(i), [(V(j), W(9), j % 2 == 1) for j in range(i, 18, 3)]))
+    prog.emit(Dot(W(17), W(8), [(W(5), one, False)], "finite"))  # the NaN reaches a check
+    prog.emit(Div(W(18), W(17), W(12), "finite"))
+    values = np.random.default_rng(7).uniform(0.5, 2.0, 24)
+    values[11] = -1.0
+    dut = Engine({"mix": schedule(prog, machine(2, fmt))})
+
+    async def tb(ctx):
+        t = TB(ctx, dut, SimpleNamespace(layout=lay, fmt=fmt, steps={"mix": prog}))
+        await t.put("v", values)
+        st = await t.step("mix")
+        assert st.nan and not st.pivot
+
+    simulate(dut, tb)
