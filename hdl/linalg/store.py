@@ -4,8 +4,9 @@ per cycle.
 An instruction starts one operation (or one affine run of an accumulation's terms) at a
 cycle given as a delta from the previous instruction's start. An FMA segment names its PE and
 two address generators, ``a_k = a0 + k sa`` and ``b_k = b0 + k sb``, issued every ``Lf``
-cycles for ``count`` terms; the first segment of an accumulation also carries ``init``, the
-last its destination(s) and check. A division, square root or copy is one instruction. The
+cycles for ``count`` terms; the first segment of an accumulation is marked ``first`` (its
+addend is ``init``, or ``-0`` without one, instead of the PE's feedback) and carries
+``init``, the last its destination(s) and check. A division, square root or copy is one instruction. The
 sequencer keeps one segment generator per PE interleave slot (``Lf`` per PE).
 
 Field widths are the fewest bits that hold every value of the program set (the three UKF
@@ -36,6 +37,7 @@ class Instruction:
     b0: int
     sb: int
     neg: bool
+    first: bool  # first segment of an accumulation (every div, sqrt and copy)
     init: int | None  # first segment of an FMA accumulation
     dst: tuple[int, ...]  # last segment (empty otherwise)
     last: bool
@@ -70,13 +72,13 @@ def encode(sched: Schedule) -> list[Instruction]:
             for r, (i, j, sa, sb) in enumerate(runs):
                 last = r == len(runs) - 1
                 out.append(Instruction(p.start + i * lf, "fma", p.pe, j - i, op.terms[i][0], sa,
-                                       op.terms[i][1], sb, op.terms[i][2],
+                                       op.terms[i][1], sb, op.terms[i][2], r == 0,
                                        op.init if r == 0 else None, op.dst if last else (),
                                        last, op.check if last else None))
         else:
             rd = op.reads
             out.append(Instruction(p.start, p.unit, 0, 1, rd[0], 0, rd[1] if len(rd) > 1 else 0,
-                                   0, False, None, op.dst, True, op.check))
+                                   0, False, True, None, op.dst, True, op.check))
     out.sort(key=lambda ins: (ins.start, UNITS.index(ins.unit), ins.pe))
     return out
 
@@ -115,6 +117,7 @@ def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
         "a0": A, "sa": max(_sbits(i.sa) for i in allins),
         "b0": A, "sb": max(_sbits(i.sb) for i in allins),
         "neg": 1,
+        "first": 1,
         "init": 1 + A,  # valid + address
         "dst": 1 + 2 * A,  # a mirror flag, two addresses (the second only when mirrored)
         "last": 1,

@@ -29,8 +29,8 @@ class Status:
 def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
     """Execute ``prog`` on ``mem`` (a list of words, changed in place); return the status.
 
-    The whole program runs even after a fault (what the hardware leaves in memory after it
-    stops early is not modelled here)."""
+    The whole program runs even after a fault, as the engine does (it latches the error
+    bit and finishes the step: the same cycles, the same memory)."""
     fmt = prog.fmt
     sign = 1 << (fmt.width - 1)
     exp_all = fmt.exp_max_field << fmt.frac_bits

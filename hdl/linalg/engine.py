@@ -1,0 +1,167 @@
+"""The linear-algebra engine: runs scheduled step programs from its program store, cycle for
+cycle as :mod:`.schedule` planned them, on its banked operand memory.
+
+::
+
+  start/step ─► sequencer ─► InstructionStream pe0 .. pe{P-1}, div, sqrt, copy (ROMs)
+                   │                 │ fire + instruction, the cycle before the start
+                   │                 ▼
+                   │      ProcessingElement x P  SharedUnit div / sqrt / copy
+                   │         3 read, 2 write       2|1 read, 2 write lanes
+                   │                 │ ▲
+                   │                 ▼ │  crossbar (per bank: port 0 to the first lane,
+  bus port  ───────┼──────────► BankedMemory    port 1 to the next; bus lanes last)
+                   │            2P + 2 dual-port RAM banks, constants initialised
+                   ▼
+         busy / done / err_pivot / err_nan / flags
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Array, C, Module, ResetInserter, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from .banks import BankedMemory
+from .microcode import compile_steps
+from .sequencer import InstructionStream, instruction_layout
+from .units import ProcessingElement, SharedUnit
+
+__all__ = ["Engine", "OVERHEAD"]
+
+#: Cycles a step takes beyond its schedule: the program store's first fetch (the step's
+#: cycle -1, when instructions starting at cycle 0 leave their streams) and ``done``'s
+#: register.
+OVERHEAD = 2
+
+
+class Engine(wiring.Component):
+    """The engine of ``steps`` (schedules of one machine, one memory layout and format).
+
+    A step starts when ``start`` is high while idle (``step`` names it); ``busy`` rises the
+    next cycle and ``done`` is high for one cycle :meth:`cycles` clock edges after the one
+    that sampled ``start`` (the schedule's length plus :data:`OVERHEAD`), when ``busy`` has
+    fallen. ``start`` while busy is ignored.
+
+    Faults: a checked pivot that is NaN, negative or zero sets ``err_pivot``; a NaN or
+    infinity in a result checked ``finite`` sets ``err_nan``. Neither stops the step: it runs
+    to its end (the same length, so nothing can hang, and the memory then holds exactly
+    what :func:`kfgen.sim.linalg.exec.run` leaves, NaNs included), and the core is idle
+    after ``done``. The error bits, and ``flags`` (the OR of every FMA, division and square
+    root's IEEE flags NX UF OF DZ NV), clear at the next start and are otherwise held.
+
+    The bus port reads and writes the memory while idle, one read and one write a cycle:
+    ``mem_rdata`` holds the word at ``mem_raddr`` of the previous cycle (read latency 1; a
+    read and a write of one word in one cycle read the old word). While busy the engine's
+    lanes come first: a bus read returns an undefined word and a bus write may be lost or
+    corrupt the step (the bus front end refuses them). Constants are in the memory from
+    configuration; nothing resets the memory.
+
+    Parameters
+    ----------
+    steps : dict of str to schedule.Schedule
+        The step programs, scheduled; ``step`` is an index into their order.
+
+    Members
+    -------
+    start : In(1)
+    step : In(range(len(steps)))
+    halt : In(1)
+        Soft reset: the engine is idle the next cycle, nothing more is written (the memory
+        keeps what the step wrote so far), ``done`` does not rise. The status is kept.
+    busy, done : Out(1)
+    err_pivot, err_nan : Out(1)
+    flags : Out(5)
+    mem_raddr : In(range(size)); mem_rdata : Out(width)
+    mem_waddr : In(range(size)); mem_wdata : In(width); mem_we : In(1)
+    """
+
+    def __init__(self, steps):
+        if not steps:
+            raise ValueError("steps must name at least one scheduled step")
+        self._names = list(steps)
+        self._scheds = list(steps.values())
+        prog = self._scheds[0].program
+        self._fmt, self._layout = prog.fmt, prog.layout
+        self._mc = self._scheds[0].machine
+        self._code = compile_steps(self._scheds)
+        w, size = self._fmt.width, self._layout.size
+        super().__init__({
+            "start": In(1), "step": In(range(max(2, len(steps)))), "halt": In(1),
+            "busy": Out(1), "done": Out(1), "err_pivot": Out(1), "err_nan": Out(1),
+            "flags": Out(5),
+            "mem_raddr": In(range(size)), "mem_rdata": Out(w),
+            "mem_waddr": In(range(size)), "mem_wdata": In(w), "mem_we": In(1),
+        })
+
+    @property
+    def step_names(self):
+        return tuple(self._names)
+
+    def cycles(self, step) -> int:
+        """Clock edges from the one sampling ``start`` to the one after which ``done`` is
+        high: the schedule's length plus :data:`OVERHEAD`."""
+        k = self._names.index(step) if isinstance(step, str) else step
+        return self._code.cycles[k] + OVERHEAD
+
+    def elaborate(self, platform):
+        m = Module()
+        mc, fmt, code = self._mc, self._fmt, self._code
+        g = code.geometry
+        units = []
+        for name, img in code.streams.items():
+            layout = instruction_layout(img.unit, g, code.widths)
+            stream = InstructionStream(img, layout)
+            m.submodules[f"{name}_stream"] = ResetInserter(self.halt)(stream)
+            if img.unit == "fma":
+                unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
+            else:
+                stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "copy": None}[img.unit]
+                unit = SharedUnit(img.unit, fmt, g, layout, stages=stages)
+            m.submodules[name] = ResetInserter(self.halt)(unit)  # no write in flight
+            m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]
+            units.append((stream, unit))
+        reads = [lane for _, u in units for lane in u.rd]
+        writes = [lane for _, u in units for lane in u.wr]
+        m.submodules.memory = mem = BankedMemory(g, fmt.width, self._layout.initial_memory(),
+                                                 len(reads) + 1, len(writes) + 1)
+        for a, b in zip(reads, mem.rd):
+            wiring.connect(m, a, b)
+        for a, b in zip(writes, mem.wr):
+            wiring.connect(m, a, b)
+        bus_rd, bus_wr = mem.rd[-1], mem.wr[-1]
+        m.d.comb += [
+            bus_rd.en.eq(1),
+            bus_rd.addr.bank.eq(self.mem_raddr % g.banks),
+            bus_rd.addr.row.eq(self.mem_raddr // g.banks),
+            self.mem_rdata.eq(bus_rd.data),
+            bus_wr.en.eq(self.mem_we),
+            bus_wr.addr.bank.eq(self.mem_waddr % g.banks),
+            bus_wr.addr.row.eq(self.mem_waddr // g.banks),
+            bus_wr.data.eq(self.mem_wdata),
+        ]
+        # the sequencer: count the step's cycles from -1 to its last write
+        go = self.start & ~self.busy
+        step = Signal.like(self.step)
+        count = Signal(range(max(code.cycles) + 1))
+        pad = (1 << len(step)) - len(code.cycles)  # every step index covered
+        last = Array(C(c, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
+        for stream, _ in units:
+            m.d.comb += [stream.start.eq(go), stream.step.eq(self.step)]
+        m.d.sync += self.done.eq(0)
+        with m.If(self.halt):
+            m.d.sync += self.busy.eq(0)
+        with m.Elif(go):
+            m.d.sync += [self.busy.eq(1), step.eq(self.step), count.eq(0),
+                         self.err_pivot.eq(0), self.err_nan.eq(0), self.flags.eq(0)]
+        with m.Elif(self.busy):
+            m.d.sync += count.eq(count + 1)
+            with m.If(count == last[step]):
+                m.d.sync += [self.busy.eq(0), self.done.eq(1)]
+            pivot = nan = flags = 0
+            for _, u in units:
+                pivot, nan, flags = pivot | u.pivot, nan | u.nan, flags | u.flags
+            m.d.sync += [self.err_pivot.eq(self.err_pivot | pivot),
+                         self.err_nan.eq(self.err_nan | nan),
+                         self.flags.eq(self.flags | flags)]
+        return m

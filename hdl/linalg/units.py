@@ -1,0 +1,237 @@
+"""The engine's executing units: a processing element (an FMA interleaving ``Lf``
+accumulations) and the shared divider, square root and move unit.
+
+Both take an instruction from their :class:`~.sequencer.InstructionStream` the cycle before
+it starts (``fire``), read their operands at the start cycle ``t`` (data at ``t + 1``, read
+latency 1) and write the result at ``t + 1 + L`` after the last issue: the scheduler's
+machine, cycle for cycle.
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Const, Module, Mux, Signal
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In, Out
+
+from kfgen.hdl.arith.float.div import FloatDiv
+from kfgen.hdl.arith.float.fma import FloatFMA
+from kfgen.hdl.arith.float.sqrt import FloatSqrt
+
+from .banks import ReadLane, WriteLane, addr_layout
+
+__all__ = ["ProcessingElement", "SharedUnit", "faults"]
+
+
+def faults(fmt, y, check):
+    """``(pivot, nan)`` of result ``y`` under check code ``check`` (1 pivot, 2 finite), as
+    :func:`kfgen.sim.linalg.exec.run` decides them: a pivot is bad when NaN, negative
+    (``-0`` included) or ``+0``; a checked result when NaN or infinite."""
+    w, f = fmt.width, fmt.frac_bits
+    special = y[f:w - 1] == (1 << fmt.exp_bits) - 1
+    nan = special & (y[:f] != 0)
+    pivot = (check == 1) & (nan | y[w - 1] | (y[:w - 1] == 0))
+    return pivot, (check == 2) & special
+
+
+def _advance(g, m, addr, stride):
+    """``addr + stride`` in (bank, row) form: the bank wraps at most once."""
+    out = Signal(addr_layout(g))
+    s = Signal(g.bank_bits + 1)
+    wrap = s >= g.banks
+    m.d.comb += [
+        s.eq(addr.bank + stride.bank),
+        out.bank.eq(Mux(wrap, s - g.banks, s)),
+        out.row.eq(addr.row + stride.row + wrap),
+    ]
+    return out
+
+
+def _writeback_layout(g):
+    addr = addr_layout(g)
+    return data.StructLayout({"en": 1, "dst": addr, "mirror": 1, "dst1": addr, "check": 2})
+
+
+def _delay(m, sig, cycles, name):
+    """``sig`` delayed by ``cycles`` registers."""
+    for i in range(cycles):
+        nxt = Signal.like(sig, name=f"{name}_{i + 1}")
+        m.d.sync += nxt.eq(sig)
+        sig = nxt
+    return sig
+
+
+class _Unit(wiring.Component):
+    """What every executing unit offers the engine: read and write lanes, the status."""
+
+    def __init__(self, fmt, geometry, layout, reads):
+        self._fmt, self._g = fmt, geometry
+        super().__init__({
+            "fire": In(1), "ins": In(layout),
+            "rd": Out(ReadLane(geometry, fmt.width)).array(reads),
+            "wr": Out(WriteLane(geometry, fmt.width)).array(2),
+            "pivot": Out(1), "nan": Out(1), "flags": Out(5),
+        })
+
+    def _write(self, m, wb, y):
+        """Write ``y`` where ``wb`` (:func:`_writeback_layout`) says, and check it."""
+        pivot, nan = faults(self._fmt, y, wb.check)
+        m.d.comb += [
+            self.wr[0].en.eq(wb.en), self.wr[0].addr.eq(wb.dst), self.wr[0].data.eq(y),
+            self.wr[1].en.eq(wb.en & wb.mirror), self.wr[1].addr.eq(wb.dst1),
+            self.wr[1].data.eq(y),
+            self.pivot.eq(wb.en & pivot), self.nan.eq(wb.en & nan),
+        ]
+
+
+class ProcessingElement(_Unit):
+    """A fused multiply-add whose output feeds its addend: ``Lf`` accumulations interleave,
+    one term a cycle (the chapter's PE, without a FIFO: the scheduler spaces an
+    accumulation's terms exactly ``Lf`` apart).
+
+    The accumulations in flight live in a ring of ``Lf`` slots, one per phase of the cycle
+    modulo ``Lf``; the slot at the head issues (reads ``a_k``, ``b_k``; advances both address
+    generators) and goes to the tail. A new segment takes the head the cycle it starts (its
+    phase is free: the scheduler placed it there). The addend of a first term is ``init``,
+    read on the third lane the cycle before the start, or ``-0``; any other term's is the
+    FMA's output of the same phase, ``Lf`` cycles after the previous term.
+
+    Parameters
+    ----------
+    fmt : FloatFormat
+    geometry : microcode.Geometry
+    layout : data.StructLayout
+        The stream's instruction (:func:`~.sequencer.instruction_layout` of ``"fma"``).
+
+    Members
+    -------
+    fire : In(1); ins : In(layout)
+        From the PE's stream, the cycle before the instruction starts.
+    rd : Out(ReadLane).array(3)
+        ``a``, ``b`` and ``init``.
+    wr : Out(WriteLane).array(2)
+        The result and its mirror.
+    pivot, nan : Out(1)
+        A checked result fails, the cycle it is written.
+    flags : Out(5)
+        The FMA's IEEE flags of every term, the cycle it leaves the FMA.
+
+    Latency: a result is written ``1 + Lf`` cycles after its last term issues.
+    """
+
+    def __init__(self, fmt, geometry, layout, stages=None):
+        self._stages = stages
+        super().__init__(fmt, geometry, layout, 3)
+
+    def elaborate(self, platform):
+        m = Module()
+        fmt, g = self._fmt, self._g
+        m.submodules.fma = fma = FloatFMA(fmt, stages=self._stages)
+        lf = fma.latency
+        ins = self.ins
+        addr = addr_layout(g)
+        slot = data.StructLayout({
+            "active": 1, "rem": ins.count.shape(), "a": addr, "sa": addr, "b": addr, "sb": addr,
+            "neg": 1, "first": 1, "init_en": 1, "last": 1, "dst": addr, "mirror": 1, "dst1": addr,
+            "check": 2})
+        # the cycle before the start: the init read, and the new segment registered
+        new = Signal(slot)
+        m.d.comb += [self.rd[2].en.eq(self.fire & ins.first & ins.init_en),
+                     self.rd[2].addr.eq(ins.init)]
+        m.d.sync += new.active.eq(self.fire)
+        with m.If(self.fire):
+            m.d.sync += [new.rem.eq(ins.count)]
+            m.d.sync += [getattr(new, k).eq(getattr(ins, k)) for k in
+                         ("a", "sa", "b", "sb", "neg", "first", "init_en", "last", "dst",
+                          "mirror", "dst1", "check")]
+        # issue: the head of the ring, or the new segment
+        ring = [Signal(slot, name=f"ring{i}") for i in range(lf)]
+        head = Signal(slot)
+        m.d.comb += head.eq(Mux(new.active, new, ring[0]))
+        nxt = Signal(slot)
+        m.d.comb += [
+            nxt.eq(head),
+            nxt.active.eq(head.active & (head.rem != 1)),
+            nxt.rem.eq(head.rem - 1),
+            nxt.first.eq(0),
+            nxt.a.eq(_advance(g, m, head.a, head.sa)),
+            nxt.b.eq(_advance(g, m, head.b, head.sb)),
+        ]
+        m.d.sync += [ring[i].eq(ring[i + 1]) for i in range(lf - 1)]
+        m.d.sync += ring[-1].eq(nxt)
+        m.d.comb += [
+            self.rd[0].en.eq(head.active), self.rd[0].addr.eq(head.a),
+            self.rd[1].en.eq(head.active), self.rd[1].addr.eq(head.b),
+        ]
+        # operands arrive: into the FMA
+        valid = Signal()
+        neg = Signal()
+        first = Signal()
+        init_en = Signal()
+        init = Signal(fmt.width)
+        wb = Signal(_writeback_layout(g))
+        m.d.sync += [
+            valid.eq(head.active), neg.eq(head.neg), first.eq(head.first),
+            init_en.eq(head.init_en), init.eq(self.rd[2].data),
+            wb.en.eq(head.active & head.last & (head.rem == 1)),
+            wb.dst.eq(head.dst), wb.mirror.eq(head.mirror), wb.dst1.eq(head.dst1),
+            wb.check.eq(head.check),
+        ]
+        sign = Const(fmt.sign_mask, fmt.width)
+        m.d.comb += [
+            fma.i_valid.eq(valid),
+            fma.i_a.eq(self.rd[0].data ^ Mux(neg, sign, 0)),
+            fma.i_b.eq(self.rd[1].data),
+            fma.i_c.eq(Mux(first, Mux(init_en, init, sign), fma.o_y)),
+            self.flags.eq(Mux(fma.o_valid, fma.o_flags, 0)),
+        ]
+        self._write(m, _delay(m, wb, lf, "wb"), fma.o_y)
+        return m
+
+
+class SharedUnit(_Unit):
+    """The divider (``a / b``), the square root (``sqrt(a)``) or the move unit (``a``): one
+    issue a cycle, operands read at the start ``t``, the result written at ``t + 1 + L``
+    (``L = 0`` for a move).
+
+    Parameters
+    ----------
+    kind : "div", "sqrt" or "copy"
+    fmt, geometry, layout, stages
+        As :class:`ProcessingElement`; ``stages`` the unit's latency (``None``: its default).
+
+    Members
+    -------
+    As :class:`ProcessingElement`, with ``rd`` of two lanes (``a``, ``b``) for the divider, one
+    otherwise.
+    """
+
+    def __init__(self, kind, fmt, geometry, layout, stages=None):
+        if kind not in ("div", "sqrt", "copy"):
+            raise ValueError(f"kind must be div, sqrt or copy, not {kind!r}")
+        self._kind, self._stages = kind, stages
+        super().__init__(fmt, geometry, layout, 2 if kind == "div" else 1)
+
+    def elaborate(self, platform):
+        m = Module()
+        fmt, g, ins = self._fmt, self._g, self.ins
+        new = Signal(ins.shape())
+        new_en = Signal()
+        m.d.sync += new_en.eq(self.fire)
+        with m.If(self.fire):
+            m.d.sync += new.eq(ins)
+        for i, lane in enumerate(self.rd):
+            m.d.comb += [lane.en.eq(new_en), lane.addr.eq(new.a if i == 0 else new.b)]
+        wb = Signal(_writeback_layout(g))
+        m.d.sync += [wb.en.eq(new_en), wb.dst.eq(new.dst), wb.mirror.eq(new.mirror),
+                     wb.dst1.eq(new.dst1), wb.check.eq(new.check)]
+        if self._kind == "copy":
+            self._write(m, wb, self.rd[0].data)
+            return m
+        cls = FloatDiv if self._kind == "div" else FloatSqrt
+        m.submodules.unit = unit = cls(fmt, stages=self._stages)
+        m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(self.rd[0].data)]
+        if self._kind == "div":
+            m.d.comb += unit.i_b.eq(self.rd[1].data)
+        m.d.comb += self.flags.eq(Mux(unit.o_valid, unit.o_flags, 0))
+        self._write(m, _delay(m, wb, unit.latency, "wb"), unit.o_y)
+        return m
