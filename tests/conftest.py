@@ -9,6 +9,9 @@ from amaranth.sim import Simulator
 ROOT = Path(__file__).resolve().parent.parent
 # KFGEN_TEST_BUILD moves the work files (for runs side by side in one checkout).
 BUILD = Path(os.environ.get("KFGEN_TEST_BUILD", ROOT / "build" / "tests")).resolve()
+# Verilator builds shared by every test and pytest-xdist worker, keyed by sources and flags
+# (kfgen.sim.verilator.build locks each while it is built).
+VERILATOR_CACHE = BUILD / "verilator"
 
 
 def pytest_addoption(parser):
@@ -37,8 +40,11 @@ def kfgen(*args, check=True):
 
 @pytest.fixture(scope="session")
 def build_root():
-    BUILD.mkdir(parents=True, exist_ok=True)
-    return BUILD
+    """This process's work directory: under pytest-xdist each worker has its own, so two
+    workers never generate into one directory."""
+    root = BUILD / os.environ.get("PYTEST_XDIST_WORKER", "")
+    root.mkdir(parents=True, exist_ok=True)
+    return root
 
 
 # ---------------------------------------------------------------- Amaranth simulator helpers

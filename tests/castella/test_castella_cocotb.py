@@ -12,7 +12,7 @@ from kfgen.sim.castella import scenarios
 from kfgen.sim.castella.run import run_castella
 from kfgen.sim.verilator import pack_fields
 
-from conftest import kfgen
+from conftest import VERILATOR_CACHE, kfgen
 
 CONFIGS = {
     "castella": dict(tracks=1),
@@ -65,8 +65,9 @@ def scenario_codes(params, runs, seed, which=("scenario1", "scenario2")):
 def run_checked(out, params, manifest, tids, ys, rs, **kw):
     expected, cols = expected_words(params, manifest, tids, ys, rs)
     waves = bool(os.environ.get("KFGEN_WAVES"))  # KFGEN_WAVES=1 make test: dump.fst per run
-    build = out / ("sim_build_fst" if waves else "sim_build")
-    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=build, waves=waves, **kw)
+    run_dir = out / ("sim_build_fst" if waves else "sim_build")
+    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=run_dir,
+                       cache_dir=VERILATOR_CACHE, waves=waves, **kw)
     # The testbench compared every word as it arrived; check the count and order here too.
     assert len(res["tid"]) == len(tids)
     assert np.array_equal(res["tid"], tids)
