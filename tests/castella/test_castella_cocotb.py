@@ -27,6 +27,8 @@ _CLI = {"tracks": "--tracks", "data_width": "--data-width", "gain_width": "--gai
         "q_width": "--q-width", "period": "--period", "sigma_r": "--sigma-r"}
 
 
+# Tests of one core share its generated Verilog (this module's fixture) and its Verilator
+# build: under pytest-xdist each such set is an xdist_group, so it runs on one worker.
 @pytest.fixture(scope="module")
 def core(build_root):
     made = {}
@@ -76,6 +78,7 @@ def run_checked(out, params, manifest, tids, ys, rs, **kw):
     return res, cols
 
 
+@pytest.mark.xdist_group("castella")
 def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     out, p, man = core("castella")
     codes = scenario_codes(p, 1, seed=11)  # scenario 1 then scenario 2 on the same track
@@ -90,6 +93,7 @@ def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     assert cols["manoeuvre"].any() and cols["q"].max() == p.q_max
 
 
+@pytest.mark.xdist_group("castella")
 def test_single_track_cycle_counts(core):
     """With no gaps and output always ready: exact latency, and one track every track_interval."""
     out, p, man = core("castella")
@@ -102,6 +106,7 @@ def test_single_track_cycle_counts(core):
     assert np.all(np.diff(res["in_cycle"]) == man["track_interval_cycles"])
 
 
+@pytest.mark.xdist_group("castella8")
 def test_eight_tracks_random_order(core):
     out, p, man = core("castella8")
     rng = np.random.default_rng(21)
@@ -112,6 +117,7 @@ def test_eight_tracks_random_order(core):
     run_checked(out, p, man, tids, ys, rs, gap=0.25, stall=0.25, seed=5, name="random")
 
 
+@pytest.mark.xdist_group("castella8")
 def test_eight_tracks_round_robin_timing(core):
     out, p, man = core("castella8")
     codes = scenario_codes(p, 4, seed=22)[:, :30]
@@ -152,6 +158,7 @@ def test_non_default_widths(core):
 
 
 @pytest.mark.full
+@pytest.mark.xdist_group("castella64")
 @pytest.mark.parametrize("scenario", ["scenario1", "scenario2"])
 def test_monte_carlo_50_runs(core, scenario):
     out, p, man = core("castella64")
