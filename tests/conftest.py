@@ -19,6 +19,9 @@ def pytest_addoption(parser):
 
 
 def pytest_collection_modifyitems(config, items):
+    # Verilator tests (minutes each) first: started last, one would leave the other
+    # pytest-xdist worker idle at the end. The sort is stable, so every worker agrees.
+    items.sort(key=lambda it: "verilator" not in it.keywords)
     # Long sweeps are deselected, not skipped, from the default regression.
     if config.getoption("--full"):
         return

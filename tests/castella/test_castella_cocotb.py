@@ -14,6 +14,8 @@ from kfgen.sim.verilator import pack_fields
 
 from conftest import VERILATOR_CACHE, kfgen
 
+pytestmark = pytest.mark.verilator
+
 CONFIGS = {
     "castella": dict(tracks=1),
     "castella8": dict(tracks=8),

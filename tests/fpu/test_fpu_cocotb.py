@@ -18,6 +18,8 @@ from kfgen.sim.fpu.run import run_fpu_group
 
 from conftest import VERILATOR_CACHE, kfgen
 
+pytestmark = pytest.mark.verilator
+
 ALL_OPS = ("add", "sub", "mul", "div", "sqrt", "fma", "i2f", "f2i")
 
 # name: (format, subnormals, {prefix: (op, cycles_per_op)}, random sets per op)
