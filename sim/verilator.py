@@ -49,22 +49,28 @@ def unpack_fields(manifest: dict, port: str, words) -> dict:
     return out
 
 
-# verilated.mk (the wheel's) compiles the model at -Os and has an empty precompiled-header
-# include flag, so a split build (``--output-split``, several .cpp files made in parallel)
-# passes the header's name as a second source file and fails. Both are make variables; the
-# make command gets them (command-line variables override the makefile's).
+# verilated.mk (the wheel's) compiles everything at -Os, and its precompiled-header include
+# flag is empty, so a split build (``--output-split``: several .cpp files, made in parallel)
+# passes the header's name as a second source file and fails. Both are make variables, set
+# on the make command (command-line variables override the makefile's).
 _PCH_FIX = ["CFG_CXXFLAGS_PCH_I=-include"]
+# Verilator's default split, and long functions split too: gcc's time grows faster than
+# linearly with a function's size above -O0.
 _SPLIT = ["--output-split", "20000", "--output-split-cfuncs", "20000"]
-# Below this many simulated cycles the C++ compile costs more than the faster model saves:
-# the testbench's Python side (cocotb, a few tens of microseconds a cycle) dominates the
-# run, not the model's evaluation (tests/README: measured per test group).
+# Above this many simulated cycles a faster model repays its compile. Below it the compile
+# dominates: the cocotb testbench's Python side costs more a cycle than the model's
+# evaluation, and the largest test build (seven binary64 units, one file) compiles in 26 s
+# of CPU at -O0 but takes minutes at -O1 or -Os.
 LONG_RUN_CYCLES = 200_000
 
 
-def cxx_opt(cycles: int | None) -> str:
-    """The C++ optimisation level for a model that will simulate about ``cycles`` cycles
-    (``None``: unknown, taken as a long run)."""
-    return "-O1" if cycles is not None and cycles < LONG_RUN_CYCLES else "-O2"
+def cxx_opt(cycles: int | None) -> dict[str, str]:
+    """verilated.mk's optimisation variables for a model that will simulate about ``cycles``
+    cycles (``None``: unknown, taken as a long run). OPT_FAST is the evaluation code,
+    OPT_GLOBAL Verilator's runtime (VPI included, which cocotb calls every cycle), OPT_SLOW
+    the code run once (construction, symbol table), never worth optimising."""
+    level = "-O0" if cycles is not None and cycles < LONG_RUN_CYCLES else "-O2"
+    return {"OPT_FAST": level, "OPT_GLOBAL": level, "OPT_SLOW": "-O0"}
 
 
 @dataclass(frozen=True)
@@ -109,9 +115,8 @@ def build(sources: list, top: str, cache_dir: Path, waves: bool = False, cycles:
             tagged.append(VerilatorControlFile(vlt))
         files.append(src)
         tagged.append(Verilog(src))
-    opt = cxx_opt(cycles)
     verilator_args = _SPLIT + (["--trace-fst", "--trace-structs"] if waves else [])
-    make_args = [f"OPT_FAST={opt}", f"OPT_SLOW={opt}", f"OPT_GLOBAL={opt}", *_PCH_FIX]
+    make_args = [f"{k}={v}" for k, v in cxx_opt(cycles).items()] + _PCH_FIX
     cache_dir = Path(cache_dir).resolve()
     cache_dir.mkdir(parents=True, exist_ok=True)
     key = _key(files, top, verilator_args, make_args)

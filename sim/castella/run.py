@@ -35,8 +35,10 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     build_dir.mkdir(parents=True, exist_ok=True)
     manifest_path = rtl_dir / f"{top}.json"
     manifest = json.loads(manifest_path.read_text())
-    # gap and stall idle a cycle with their probabilities; each input waits for its track
-    cycles = int(len(y) * manifest["track_interval_cycles"] / max(1e-3, 1 - gap - stall))
+    # about how long the run takes (picks the build's optimisation): a track takes a measurement
+    # every track_interval cycles, tracks interleave, gaps and stalls idle cycles
+    per = max(1.0, manifest["track_interval_cycles"] / manifest["parameters"]["tracks"])
+    cycles = int(len(y) * per / max(1e-3, (1 - gap) * (1 - stall)))
     model = build([rtl_dir / f"{top}.v"], top, cache_dir or build_dir, waves=waves, cycles=cycles)
 
     stim = build_dir / f"{name}_stim.npz"
