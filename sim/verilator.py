@@ -57,11 +57,12 @@ _PCH_FIX = ["CFG_CXXFLAGS_PCH_I=-include"]
 # Verilator's default split, and long functions split too: gcc's time grows faster than
 # linearly with a function's size above -O0.
 _SPLIT = ["--output-split", "20000", "--output-split-cfuncs", "20000"]
-# Above this many simulated cycles a faster model repays its compile. The cocotb testbench's
-# Python side costs far more a cycle than the model's evaluation: measured on the eight
-# binary32 units (26k cycles), -O2 saved 1 s of CPU in the run and cost 49 s more to compile
-# than -O0 (77 s against 28 s); break-even is about a million cycles.
-LONG_RUN_CYCLES = 1_000_000
+# Above this many simulated cycles a faster model repays its compile: the cocotb testbench's
+# Python side costs more a cycle than the model's evaluation. Measured (CPU time, -O2 against
+# -O0): the eight binary32 units, 26k cycles, compile 49 s longer and run 1 s faster; the
+# six 16-bit exhaustive units, 82k cycles, 11 s longer and 6 s faster. Break-even lies
+# between 150k and 1.2M cycles.
+LONG_RUN_CYCLES = 500_000
 
 
 def cxx_opt(cycles: int | None) -> dict[str, str]:
