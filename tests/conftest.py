@@ -9,6 +9,9 @@ from amaranth.sim import Simulator
 ROOT = Path(__file__).resolve().parent.parent
 # KFGEN_TEST_BUILD moves the work files (for runs side by side in one checkout).
 BUILD = Path(os.environ.get("KFGEN_TEST_BUILD", ROOT / "build" / "tests")).resolve()
+# Verilator builds shared by every test and pytest-xdist worker, keyed by sources and flags
+# (kfgen.sim.verilator.build locks each while it is built).
+VERILATOR_CACHE = BUILD / "verilator"
 
 
 def pytest_addoption(parser):
@@ -16,6 +19,9 @@ def pytest_addoption(parser):
 
 
 def pytest_collection_modifyitems(config, items):
+    # Verilator tests (minutes each) first: started last, one would leave the other
+    # pytest-xdist worker idle at the end. The sort is stable, so every worker agrees.
+    items.sort(key=lambda it: "verilator" not in it.keywords)
     # Long sweeps are deselected, not skipped, from the default regression.
     if config.getoption("--full"):
         return
@@ -37,8 +43,11 @@ def kfgen(*args, check=True, env=None):
 
 @pytest.fixture(scope="session")
 def build_root():
-    BUILD.mkdir(parents=True, exist_ok=True)
-    return BUILD
+    """This process's work directory: under pytest-xdist each worker has its own, so two
+    workers never generate into one directory."""
+    root = BUILD / os.environ.get("PYTEST_XDIST_WORKER", "")
+    root.mkdir(parents=True, exist_ok=True)
+    return root
 
 
 # ---------------------------------------------------------------- Amaranth simulator helpers

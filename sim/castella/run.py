@@ -2,7 +2,8 @@
 
 ``run_castella`` is what the regression, the plots and the Monte Carlo run use: give it the
 directory ``kfgen castella -o DIR`` wrote and a stream of measurements; it returns every
-output word and the cycle of every handshake. Builds are cached per directory.
+output word and the cycle of every handshake. Builds are cached by content
+(:func:`kfgen.sim.verilator.build`), so runs of one configuration share one.
 """
 
 from __future__ import annotations
@@ -19,20 +20,26 @@ __all__ = ["run_castella"]
 
 def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = None,
                  gap: float = 0.0, stall: float = 0.0, seed: int = 1, build_dir=None,
-                 waves: bool = False, name: str = "run") -> dict:
+                 cache_dir=None, waves: bool = False, name: str = "run") -> dict:
     """Stream measurements through the core in Verilator and collect the results.
 
     ``expected`` (``tdata``, ``tid``, ``tuser`` word arrays) makes the testbench compare
     every result as it arrives; a difference fails the run (``AssertionError``).
     Returns the output words (``tdata``, ``tid``, ``tuser``), the decoded fields, and
-    ``in_cycle``/``out_cycle`` of every handshake. ``waves`` writes ``build_dir/<name>.fst``.
+    ``in_cycle``/``out_cycle`` of every handshake. The run's files go to ``build_dir``
+    (default ``rtl_dir/sim_build``), the Verilator build to ``cache_dir`` (default
+    ``build_dir``). ``waves`` writes ``build_dir/<name>.fst``.
     """
     rtl_dir = Path(rtl_dir).resolve()
     build_dir = Path(build_dir or rtl_dir / "sim_build").resolve()
     build_dir.mkdir(parents=True, exist_ok=True)
     manifest_path = rtl_dir / f"{top}.json"
     manifest = json.loads(manifest_path.read_text())
-    runner = build([rtl_dir / f"{top}.v"], top, build_dir, waves=waves)
+    # about how long the run takes (picks the build's optimisation): a track takes a measurement
+    # every track_interval cycles, tracks interleave, gaps and stalls idle cycles
+    per = max(1.0, manifest["track_interval_cycles"] / manifest["parameters"]["tracks"])
+    cycles = int(len(y) * per / max(1e-3, (1 - gap) * (1 - stall)))
+    model = build([rtl_dir / f"{top}.v"], top, cache_dir or build_dir, waves=waves, cycles=cycles)
 
     stim = build_dir / f"{name}_stim.npz"
     out = build_dir / f"{name}_out.npz"
@@ -47,9 +54,8 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     np.savez(stim, **arrays)
     if out.exists():
         out.unlink()
-    run_test(runner, "kfgen.sim.castella.tb", top, build_dir, name,
-             {"KFGEN_TB_MANIFEST": str(manifest_path), "KFGEN_TB_STIM": str(stim), "KFGEN_TB_OUT": str(out)},
-             waves=waves)
+    run_test(model, "kfgen.sim.castella.tb", build_dir, name,
+             {"KFGEN_TB_MANIFEST": str(manifest_path), "KFGEN_TB_STIM": str(stim), "KFGEN_TB_OUT": str(out)})
     res = dict(np.load(out, allow_pickle=True))
     res.update(unpack_fields(manifest, "m_axis_tdata", res["tdata"]))
     res.update(unpack_fields(manifest, "m_axis_tuser", res["tuser"]))

@@ -34,13 +34,14 @@ def fpu_group_wrapper(top: str, manifests: dict[str, dict]) -> str:
 
 
 def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, name: str = "group",
-                  waves: bool = False) -> dict:
+                  cache_dir=None, waves: bool = False) -> dict:
     """Simulate several generated units in one Verilator build and check every result.
 
     ``units`` maps an instance prefix to ``(rtl_dir, top, operands, expected)`` where
     ``operands`` is a dict of word lists ``a``/``b``/``c`` and ``expected`` a pair of lists
     ``(y, flags)``. Raises ``AssertionError`` on any difference; returns per-prefix results.
-    ``waves`` writes ``build_dir/<name>.fst``.
+    The run's files go to ``build_dir``, the Verilator build to ``cache_dir`` (default
+    ``build_dir``). ``waves`` writes ``build_dir/<name>.fst``.
     """
     build_dir = Path(build_dir).resolve()
     build_dir.mkdir(parents=True, exist_ok=True)
@@ -56,9 +57,11 @@ def run_fpu_group(build_dir, units: dict, *, gap: float = 0.2, seed: int = 1, na
                       "out": str(build_dir / f"{name}_{prefix}_out.npz")})
     wrapper = build_dir / f"{name}_top.v"
     wrapper.write_text(fpu_group_wrapper(f"{name}_top", manifests))
-    runner = build(sources + [wrapper], f"{name}_top", build_dir, waves=waves)
+    # units run side by side; an iterative one takes an operation every initiation_interval
+    cycles = max(len(y) * manifests[p]["initiation_interval"] for p, (_, _, _, (y, _)) in units.items())
+    model = build(sources + [wrapper], f"{name}_top", cache_dir or build_dir, waves=waves,
+                  cycles=int(cycles / (1 - gap)))
     group = build_dir / f"{name}_group.json"
     group.write_text(json.dumps({"units": specs}))
-    run_test(runner, "kfgen.sim.fpu.tb", f"{name}_top", build_dir, name, {"KFGEN_TB_GROUP": str(group)},
-             waves=waves)
+    run_test(model, "kfgen.sim.fpu.tb", build_dir, name, {"KFGEN_TB_GROUP": str(group)})
     return {s["prefix"]: dict(np.load(s["out"], allow_pickle=True)) for s in specs}

@@ -13,7 +13,9 @@ from kfgen.sim.castella import scenarios
 from kfgen.sim.castella.run import run_castella
 from kfgen.sim.verilator import pack_fields
 
-from conftest import kfgen
+from conftest import VERILATOR_CACHE, kfgen
+
+pytestmark = pytest.mark.verilator
 
 CONFIGS = {
     "castella": dict(tracks=1),
@@ -28,6 +30,8 @@ _CLI = {"tracks": "--tracks", "data_width": "--data-width", "gain_width": "--gai
         "q_width": "--q-width", "period": "--period", "sigma_r": "--sigma-r"}
 
 
+# Tests of one core share its generated Verilog (this module's fixture) and its Verilator
+# build: under pytest-xdist each such set is an xdist_group, so it runs on one worker.
 @pytest.fixture(scope="module")
 def core(build_root):
     made = {}
@@ -66,8 +70,9 @@ def scenario_codes(params, runs, seed, which=("scenario1", "scenario2")):
 def run_checked(out, params, manifest, tids, ys, rs, **kw):
     expected, cols = expected_words(params, manifest, tids, ys, rs)
     waves = bool(os.environ.get("KFGEN_WAVES"))  # KFGEN_WAVES=1 make test: dump.fst per run
-    build = out / ("sim_build_fst" if waves else "sim_build")
-    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=build, waves=waves, **kw)
+    run_dir = out / ("sim_build_fst" if waves else "sim_build")
+    res = run_castella(out, params.name, tids, ys, rs, expected=expected, build_dir=run_dir,
+                       cache_dir=VERILATOR_CACHE, waves=waves, **kw)
     # The testbench compared every word as it arrived; check the count and order here too.
     assert len(res["tid"]) == len(tids)
     assert np.array_equal(res["tid"], tids)
@@ -94,6 +99,7 @@ def check_sustained_rate(man, tracks, in_cycle):
     assert n == s * span + tracks * (1 - s), (n, span, float(s))
 
 
+@pytest.mark.xdist_group("castella")
 def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     out, p, man = core("castella")
     codes = scenario_codes(p, 1, seed=11)  # scenario 1 then scenario 2 on the same track
@@ -110,6 +116,7 @@ def test_single_track_scenarios_with_gaps_backpressure_restarts(core):
     assert cols["manoeuvre"].any() and cols["q"].max() == p.q_max
 
 
+@pytest.mark.xdist_group("castella")
 def test_single_track_cycle_counts(core):
     """With no gaps and output always ready: exact latency, and one track every track_interval,
     which with one track is the manifest's initiation interval and sustained rate."""
@@ -125,6 +132,7 @@ def test_single_track_cycle_counts(core):
     check_sustained_rate(man, p.tracks, res["in_cycle"])
 
 
+@pytest.mark.xdist_group("castella8")
 def test_eight_tracks_random_order(core):
     out, p, man = core("castella8")
     rng = np.random.default_rng(21)
@@ -135,6 +143,7 @@ def test_eight_tracks_random_order(core):
     run_checked(out, p, man, tids, ys, rs, gap=0.25, stall=0.25, seed=5, name="random")
 
 
+@pytest.mark.xdist_group("castella8")
 def test_eight_tracks_round_robin_timing(core):
     out, p, man = core("castella8")
     codes = scenario_codes(p, 4, seed=22)[:, :30]
@@ -180,6 +189,7 @@ def test_non_default_widths(core):
 
 
 @pytest.mark.full
+@pytest.mark.xdist_group("castella64")
 @pytest.mark.parametrize("scenario", ["scenario1", "scenario2"])
 def test_monte_carlo_50_runs(core, scenario):
     out, p, man = core("castella64")

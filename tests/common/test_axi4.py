@@ -98,16 +98,18 @@ def test_lint(rtl):
 
 @pytest.fixture(scope="module")
 def sim(rtl):
-    return build([rtl / f"{TOP}.v"], TOP, rtl / "sim_build"), rtl / "sim_build"
+    runs = rtl / "runs"
+    runs.mkdir(exist_ok=True)
+    return build([rtl / f"{TOP}.v"], TOP, rtl / "sim_build"), runs
 
 
 @pytest.mark.parametrize("tests", [["bursts", "fixed_bursts"], ["errors", "strobes", "raw_cases"],
                                    ["throughput", "stress"]], ids=lambda tests: tests[0])
 def test_cocotb(sim, tests):
     """Every case of :mod:`axi4_tb`, in three simulator runs of one build."""
-    runner, build_dir = sim
+    model, run_dir = sim
     pattern = "|".join(rf"axi4_tb\.{t}\b" for t in tests)
-    run_test(runner, "axi4_tb", TOP, build_dir, tests[0], {"COCOTB_TEST_FILTER": pattern})
+    run_test(model, "axi4_tb", run_dir, tests[0], {"COCOTB_TEST_FILTER": pattern})
 
 
 def test_no_input_to_output_path():

@@ -58,12 +58,12 @@ def source(build_root):
     build_dir.mkdir(parents=True, exist_ok=True)
     src = build_dir / "stream_source.v"
     src.write_text(SOURCE)
-    return build([src], "stream_source", build_dir), build_dir
+    return build([src], "stream_source", build_dir / "cache"), build_dir
 
 
 def run(source, fault):
-    runner, build_dir = source
-    run_test(runner, "stream_checker_tb", "stream_source", build_dir, f"fault_{fault}",
+    model, run_dir = source
+    run_test(model, "stream_checker_tb", run_dir, f"fault_{fault}",
              {"KFGEN_TB_FAULT": fault})
 
 

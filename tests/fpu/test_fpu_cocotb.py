@@ -16,7 +16,9 @@ from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.sim.float_ref import conversion_sweep, directed_corpus, random_operands, ref_op
 from kfgen.sim.fpu.run import run_fpu_group
 
-from conftest import kfgen
+from conftest import VERILATOR_CACHE, kfgen
+
+pytestmark = pytest.mark.verilator
 
 ALL_OPS = ("add", "sub", "mul", "div", "sqrt", "fma", "i2f", "f2i")
 
@@ -56,7 +58,7 @@ def _simulate(build_root, name, units, seed):
               "--cycles-per-op", cpo, "--name", top, "-o", root / top)
         spec[prefix] = (root / top, top, *_expected(FloatFormat.parse(fmt_name), op, subnormals, sets))
     # KFGEN_WAVES=1 make test: an FST per group in its sim_build directory
-    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=name,
+    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=seed, name=name, cache_dir=VERILATOR_CACHE,
                             waves=bool(os.environ.get("KFGEN_WAVES")))
     for prefix, (_, _, operands, (y, flags)) in spec.items():
         res = results[prefix]
