@@ -28,8 +28,8 @@ generated ``TOP.md``):
   half and the held low half. So software writes low then high, as a burst does; reads
   return the element as stored.
 - **Timing**: the step starts on the clock edge that takes the W beat writing
-  ``CTRL.start = 1``; ``STATUS.done`` reads 1 :meth:`Ukf.cycles` edges later (the manifest's
-  ``cycles``) and ``irq`` rises on the next edge.
+  ``CTRL.start = 1``; counting that edge as the first, ``STATUS.done`` reads 1 after edge
+  :meth:`Ukf.cycles` (the manifest's ``cycles``) and ``irq`` rises on the next edge.
 """
 
 from __future__ import annotations
@@ -232,8 +232,9 @@ class Ukf(wiring.Component):
         return dict(self._schedules)
 
     def cycles(self, step: str) -> int:
-        """Clock edges from the one taking the W beat of ``CTRL.start = 1`` to the first one
-        after which ``STATUS.done`` reads 1 (the engine's own count: the back end adds none)."""
+        """Clock edges from the one taking the W beat of ``CTRL.start = 1`` (counted) to the
+        first one after which ``STATUS.done`` reads 1 (the engine's own count, both ends
+        included: the back end adds nothing)."""
         return self._engine.cycles(step)
 
     def elaborate(self, platform):

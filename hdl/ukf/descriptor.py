@@ -46,7 +46,8 @@ def _extra(params, core) -> dict:
         **map_manifest(core.regmap),
         "cycles": {name: core.cycles(name) for name in scheds},
         "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
-                             "first edge after which STATUS.done reads 1; irq rises one edge later",
+                             "first edge after which STATUS.done reads 1, both counted; irq rises on the "
+                             "next edge",
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
         "engine": {"pes": mc.pes, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
