@@ -20,10 +20,10 @@ def _docs() -> dict[str, Doc]:
                       f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
                       "(any case)"),
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
-        "irq": Doc("the irq output and the IRQ_ENABLE register", "", "on or off"),
-        "address_width": Doc("width of the AXI byte address", "bits",
-                             f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs; "
-                             "default (None) the smallest that holds the map"),
+        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
+                   "on or off (in a --config file: irq = true or false)"),
+        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
+                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }

@@ -45,8 +45,13 @@ def test_lint(rtl):
     assert rc == 0 and not messages, "\n".join(messages)
 
 
-def test_no_irq(tmp_path):
-    kfgen("ukf", *SMALL, "--no-irq", "--name", "ukf_quiet", "-o", tmp_path)
+@pytest.mark.parametrize("how", ["option", "config"])
+def test_no_irq(tmp_path, how):
+    if how == "option":
+        kfgen("ukf", *SMALL, "--no-irq", "--name", "ukf_quiet", "-o", tmp_path)
+    else:
+        (tmp_path / "c.toml").write_text("irq = false\nname = 'ukf_quiet'\n")
+        kfgen("ukf", *SMALL, "--config", tmp_path / "c.toml", "-o", tmp_path)
     man = json.loads((tmp_path / "ukf_quiet.json").read_text())
     assert man["parameters"]["irq"] is False
     assert "irq" not in {p["name"] for p in man["ports"]}
