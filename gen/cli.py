@@ -9,7 +9,8 @@ The cores are found by :func:`kfgen.gen.cores.discover`; each describes itself o
 (which validates itself and raises ``ParamError(param, message)``), a sentence of meaning, a
 unit and the allowed values per parameter, and how to build the Amaranth component and
 describe its ports. Options are named after the dataclass fields (``sigma_r`` ->
-``--sigma-r``); defaults and ranges are read from the core, never repeated here.
+``--sigma-r``); a field whose default is ``True`` is a switch, ``--no-<name>`` (``irq`` ->
+``--no-irq``). Defaults and ranges are read from the core, never repeated here.
 
 Every bad input ends the same way: one line ``kfgen: error: <param>: <what is allowed>`` on
 stderr and exit status 2, and no file written.
@@ -42,6 +43,11 @@ UsageError = ParamError
 
 def option(field: str) -> str:
     return "--" + field.replace("_", "-")
+
+
+def _switch(default) -> bool:
+    """Whether a field with this default is an on/off switch (``--no-<name>``)."""
+    return default is True
 
 
 # ---------------------------------------------------------------------------- argument parsing
@@ -112,10 +118,15 @@ def _build_parser() -> argparse.ArgumentParser:
             formatter_class=argparse.RawDescriptionHelpFormatter,
             epilog="Values come from the defaults, then --config FILE.toml (its keys are the option names\n"
                    "without the leading dashes; - and _ are interchangeable), then the command line.\n"
-                   "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest);\n"
+                   "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), and for a\n"
+                   "core with a register map DIR/TOP.rdl, DIR/TOP.h and DIR/TOP.md;\n"
                    "TOP is --name.")
         g = p.add_argument_group("parameters")
         for field in defaults:
+            if _switch(defaults[field]):
+                g.add_argument("--no-" + option(field)[2:], dest=field, action="store_const", const=False,
+                               default=None, help=_help(docs[field], "on; this option turns it off"))
+                continue
             g.add_argument(option(field), metavar="TOP" if field == "name" else field.upper(),
                            dest=field, default=None, help=_help(docs[field], defaults[field]))
         p.add_argument("--config", metavar="FILE.toml", help="read parameters from a TOML file")
@@ -178,7 +189,7 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
     for field in defaults:
         text = getattr(args, field)
         if text is not None:
-            values[field] = _convert(text, defaults[field])
+            values[field] = text if _switch(defaults[field]) else _convert(text, defaults[field])
             source.pop(field, None)
     try:
         return params_cls(**values)
@@ -186,14 +197,20 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
         field = str(getattr(exc, "param", "parameters")).replace("-", "_")
         message = str(exc).split(": ", 1)[1] if hasattr(exc, "param") else str(exc)
         where = f" (from {source[field]})" if field in source else ""
-        raise UsageError(option(field) if field in defaults else field, _one_line(message) + where) from None
+        name = field if field not in defaults else "--no-" + option(field)[2:] if _switch(defaults[field]) \
+            else option(field)
+        raise UsageError(name, _one_line(message) + where) from None
 
 
 def _command(core: CoreDescriptor, params) -> str:
     """The command line that regenerates ``params`` (for the header)."""
     parts = ["kfgen", core.name]
+    defaults = _defaults(type(params))
     for field, value in dataclasses.asdict(params).items():
-        parts += [option(field), str(value)]
+        if _switch(defaults[field]):
+            parts += [] if value else ["--no-" + option(field)[2:]]
+        else:
+            parts += [option(field), str(value)]
     return " ".join(parts + ["-o", "DIR"])
 
 
@@ -215,11 +232,13 @@ def generate(core: CoreDescriptor, params) -> dict[str, str]:
     if top in declared_names(verilog):
         raise ParamError("name", f"{top!r} is also a port or net name inside the {core.name} core; "
                                  "choose another module name")
+    more = core.waivers(params)
     return {
         f"{top}.v": verilog,
-        f"{top}.vlt": waivers(verilog, top, head),
+        f"{top}.vlt": waivers(verilog, top, head) + (f"\n{more}" if more else ""),
         f"{top}.json": dumps(manifest(core.name, top, dataclasses.asdict(params), component,
                                       lambda port: core.fields_of(params, port), core.extra(params, component))),
+        **core.documents(params),
     }
 
 

@@ -85,9 +85,13 @@ def _top_desc(regmap) -> str:
             f"({regmap.size:#x} bytes), ID width {regmap.id_width}, INCR bursts and single beats. "
             f"Registers from 0x0, the buffer from {regmap.buffer_base:#x}. "
             "An address outside every register and memory answers SLVERR and reads 0. "
-            "A write to a read-only register or memory, or any write while STATUS.busy, answers SLVERR and "
-            "changes nothing; reads are always allowed. "
-            "Byte lanes whose WSTRB bit is low keep their bytes; write-1 bits act only in strobed lanes. "
+            "A write to a read-only register or memory answers SLVERR and changes nothing. "
+            "While STATUS.busy, buffer reads and writes answer SLVERR (reads return 0, writes change nothing); "
+            "registers stay readable and writable, but CTRL.start answers SLVERR and sets STATUS.err_busy. "
+            "In registers, byte lanes whose WSTRB bit is low keep their bytes (write-1 bits act only in "
+            "strobed lanes); the buffer takes whole words: all strobes write, none writes nothing, any other "
+            "answers SLVERR. A two-word element is written when its high half is, with the low half written "
+            "before it. "
             "Field access: " + "; ".join(f"{k} {v}" for k, v in _ACCESS_TEXT.items()) + ".")
 
 

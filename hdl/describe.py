@@ -63,6 +63,15 @@ class CoreDescriptor:
         into ``OUT/<name>``.
     bench : str or None
         Module whose ``main(argv)`` prints the core's benchmark table (``make bench``).
+    documents : callable
+        ``params -> {file name: text}`` of more files written beside the Verilog (the UKF's
+        register map as ``TOP.rdl``, ``TOP.h``, ``TOP.md``); none by default.
+    waivers : callable
+        ``params -> str``, more Verilator waivers appended to ``TOP.vlt`` (a front end's own);
+        none by default.
+
+    A parameter whose default is ``True`` is a switch: the command line offers
+    ``--no-<name>`` to turn it off.
     """
 
     name: str
@@ -74,6 +83,8 @@ class CoreDescriptor:
     extra: Callable = lambda params, component: {}
     examples: tuple = field(default=({},))
     bench: str | None = None
+    documents: Callable = lambda params: {}
+    waivers: Callable = lambda params: ""
 
 
 #: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:

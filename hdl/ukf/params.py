@@ -25,8 +25,8 @@ FORMAT_WIDTH_MAX = 64
 #: Widest AXI address the core accepts (a 32-bit processor's address space).
 ADDRESS_WIDTH_MAX = 32
 
-_SIZES = (("n", "states"), ("m", "observations"), ("nw", "process-noise terms"),
-          ("nv", "measurement-noise terms"))
+_SIZES = (("states", "states"), ("observations", "observations"),
+          ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
 
 
 @dataclass(frozen=True)
@@ -35,8 +35,10 @@ class UkfParams:
 
     Parameters
     ----------
-    n, m, nw, nv : int
-        States, observations, process-noise and measurement-noise terms, 1..255 each.
+    states, observations, process_noise, measurement_noise : int
+        n, m, nw and nv: states, observations, process-noise and measurement-noise terms,
+        1..255 each (named as the command line's options; :attr:`n`, :attr:`m`, :attr:`nw`
+        and :attr:`nv` read them by the chapter's letters).
     pes : int
         Processing elements P (FMA units working in parallel), 1..M.
     format : str
@@ -59,10 +61,10 @@ class UkfParams:
         Naming the first bad parameter and what it may be.
     """
 
-    n: int = 7
-    m: int = 6
-    nw: int = 7
-    nv: int = 6
+    states: int = 7
+    observations: int = 6
+    process_noise: int = 7
+    measurement_noise: int = 6
     pes: int = 1
     format: str = "binary32"
     w0: float = 0.0
@@ -97,6 +99,22 @@ class UkfParams:
         check_name(self.name)
         from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)
+
+    @property
+    def n(self) -> int:
+        return self.states
+
+    @property
+    def m(self) -> int:
+        return self.observations
+
+    @property
+    def nw(self) -> int:
+        return self.process_noise
+
+    @property
+    def nv(self) -> int:
+        return self.measurement_noise
 
     @property
     def M(self) -> int:

@@ -31,11 +31,21 @@ Access
 ------
 ``ro`` (register or region): reads return the value, a write answers SLVERR and changes
 nothing. ``rw``: reads and writes. Fields: ``ro`` (writes ignored), ``rw``, ``w1c`` (reads
-the bit; writing 1 clears it, 0 keeps it), ``w1p`` (reads 0; writing 1 acts once). Byte
-strobes: a byte lane whose WSTRB bit is low keeps its byte, in registers and buffer alike,
-and w1c and w1p bits act only where their lane's strobe is high. A hole answers SLVERR and
-reads 0; a write while STATUS.busy answers SLVERR and changes nothing; reads are always
-allowed.
+the bit; writing 1 clears it, 0 keeps it), ``w1p`` (reads 0; writing 1 acts once). A hole
+answers SLVERR and reads 0.
+
+Byte strobes: in registers a byte lane whose WSTRB bit is low keeps its byte, and w1c and w1p
+bits act only where their lane's strobe is high (every field sits in byte 0). The buffer takes
+whole bus words: a beat with all four strobes writes, one with none writes nothing (OKAY), any
+other answers SLVERR and writes nothing (the engine's memory has no byte enables). A
+two-word element (binary64) is written by its high half: writing the low half holds it in the
+core, writing the high half then writes the element from both.
+
+While STATUS.busy: a buffer write answers SLVERR and changes nothing (a step's operands are
+never corrupted), and so does a buffer read (reading 0: the step's schedule owns both ports
+of the memory banks, and the bus cannot be made to wait); the registers stay readable and
+writable (CTRL.reset stops the step, STATUS bits clear), but a write of CTRL with start set
+answers SLVERR, changes nothing and sets STATUS.err_busy.
 """
 
 from __future__ import annotations
@@ -291,7 +301,7 @@ def _registers(params) -> tuple[Register, ...]:
         )),
         Register("STATUS", 0xC, 32, "What the core is doing and how the last step ended; the event bits stay "
                  "set until written 1.", (
-                     Field("busy", 0, 1, "ro", "a step is running; buffer writes answer SLVERR"),
+                     Field("busy", 0, 1, "ro", "a step is running; buffer reads and writes answer SLVERR"),
                      *(Field(name, lsb, 1, "w1c", desc) for name, lsb, desc in events),
                  )),
     ]

@@ -152,8 +152,9 @@ def test_help_lists_every_parameter():
         assert name in top.stdout
         text = " ".join(kfgen(name, "--help").stdout.split())  # undo line wrapping
         for f in dataclasses.fields(core.params):
-            assert option(f.name) in text, f.name
-            shown = "the unit's own" if f.default is None else f.default  # None: the unit picks
+            switch = f.default is True  # a switch: --no-<name>
+            assert ("--no-" + option(f.name)[2:] if switch else option(f.name)) in text, f.name
+            shown = "the unit's own" if f.default is None else "on" if switch else f.default  # None: the unit picks
             assert f"default {shown}" in text, f.name
             doc = core.docs()[f.name]
             assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text

@@ -18,8 +18,8 @@ CONFIGS = {
     "default": {},
     "binary64": {"format": "binary64"},
     "binary16": {"format": "binary16", "w0": 0.5},
-    "small": {"n": 2, "m": 1, "nw": 1, "nv": 1, "pes": 3},
-    "noirq": {"n": 3, "m": 2, "nw": 2, "nv": 1, "irq": False, "address_width": 16},
+    "small": {"states": 2, "observations": 1, "process_noise": 1, "measurement_noise": 1, "pes": 3},
+    "noirq": {"states": 3, "observations": 2, "process_noise": 2, "measurement_noise": 1, "irq": False, "address_width": 16},
 }
 REGIONS = ("x", "P", "Q", "R", "sigma_points", "sigma_points_f", "sigma_points_h", "z")
 
@@ -33,14 +33,14 @@ def config(request):
 # ------------------------------------------------------------------------------ parameters
 
 @pytest.mark.parametrize("kwargs,param,says", [
-    ({"n": 0}, "n", "1..255"),
-    ({"m": -1}, "m", "1..255"),
-    ({"nw": 256}, "nw", "1..255"),
-    ({"nv": 1.0}, "nv", "integer"),
-    ({"n": True}, "n", "integer"),
+    ({"states": 0}, "states", "1..255"),
+    ({"observations": -1}, "observations", "1..255"),
+    ({"process_noise": 256}, "process_noise", "1..255"),
+    ({"measurement_noise": 1.0}, "measurement_noise", "integer"),
+    ({"states": True}, "states", "integer"),
     ({"pes": 0}, "pes", "1..M = 20"),
     ({"pes": 21}, "pes", "1..M = 20"),
-    ({"n": 2, "m": 1, "nw": 1, "nv": 1, "pes": 5}, "pes", "1..M = 4"),
+    ({"states": 2, "observations": 1, "process_noise": 1, "measurement_noise": 1, "pes": 5}, "pes", "1..M = 4"),
     ({"format": "binary128"}, "format", "unknown format"),
     ({"format": "e15m64"}, "format", "at most 64 bits"),
     ({"w0": 1.0}, "w0", "0 <= W0 < 1"),
@@ -169,7 +169,7 @@ def test_default_map():
     wide = ukf_map(UkfParams(format="binary64"))
     assert (wide.address_width, wide.buffer_base, wide.memories[-1].end - wide.buffer_base) == (14, 0x2000, 873 * 8)
     assert wide["P"].address(3, 2, 1) == 0x2000 + 7 * 8 + (3 * 7 + 2) * 8 + 4
-    small = ukf_map(UkfParams(n=2, m=1, nw=1, nv=1))
+    small = ukf_map(UkfParams(states=2, observations=1, process_noise=1, measurement_noise=1))
     assert (small.address_width, small.buffer_base, small.memories[-1].end - small.buffer_base) == (9, 0x100, 51 * 4)
 
 
@@ -271,6 +271,6 @@ def test_documents_are_deterministic(docs):
 
 
 def test_top_name_that_is_a_systemrdl_keyword():
-    params = UkfParams(n=2, m=1, nw=1, nv=1, name="field")
+    params = UkfParams(states=2, observations=1, process_noise=1, measurement_noise=1, name="field")
     files = documents(ukf_map(params), "field")
     assert "#define FIELD__P_OFFSET 0x108u" in files["field.h"] and "} field_t;" in files["field.h"]

@@ -1,0 +1,83 @@
+"""The UKF IP core as kfgen's command line, manifest and ``make verilog`` see it."""
+
+from __future__ import annotations
+
+from ..describe import CoreDescriptor, Doc
+from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX, SIZE_MAX, UkfParams
+
+__all__ = ["CORE"]
+
+
+def _docs() -> dict[str, Doc]:
+    size = f"an integer in 1..{SIZE_MAX}"
+    return {
+        "states": Doc("states n: the length of x", "", size),
+        "observations": Doc("observations m: the length of z", "", size),
+        "process_noise": Doc("process-noise terms nw: Q is nw x nw, and f takes them with x", "", size),
+        "measurement_noise": Doc("measurement-noise terms nv: R is nv x nv, and h takes them", "", size),
+        "pes": Doc("processing elements P (FMAs working in parallel)", "", "an integer in 1..M, M = n + nw + nv"),
+        "format": Doc("float format of every buffer word and of the arithmetic", "",
+                      f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
+                      "(any case)"),
+        "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
+        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
+                   "on or off (in a --config file: irq = true or false)"),
+        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
+                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
+        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
+                    "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
+    }
+
+
+def _build(params):
+    from .core import Ukf
+    return Ukf(params)
+
+
+def _extra(params, core) -> dict:
+    from kfgen.gen.regdoc import map_manifest
+    from kfgen.hdl.linalg.store import store_size
+
+    scheds = core.schedules
+    layout = next(iter(scheds.values())).program.layout
+    store = store_size(list(scheds.values()), layout.size)
+    mc = next(iter(scheds.values())).machine
+    return {
+        **map_manifest(core.regmap),
+        "cycles": {name: core.cycles(name) for name in scheds},
+        "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
+                             "first edge after which STATUS.done reads 1, both counted; irq rises on the "
+                             "next edge",
+        "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
+                  "N": params.N},
+        "engine": {"pes": mc.pes, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
+                   "sqrt_latency": mc.sqrt_latency, "banks": mc.banks, "memory_words": layout.size,
+                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
+                                     "bits": store.bits}},
+    }
+
+
+def _documents(params) -> dict[str, str]:
+    from kfgen.gen.regdoc import documents
+
+    from .regmap import ukf_map
+    return documents(ukf_map(params), params.name)
+
+
+def _waivers(params) -> str:
+    from ..bus.axi4 import lint_waivers
+    return lint_waivers(params.name)
+
+
+CORE = CoreDescriptor(
+    name="ukf",
+    summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
+    params=UkfParams,
+    docs=_docs,
+    build=_build,
+    fields_of=lambda p, port: None,
+    extra=_extra,
+    examples=({},),
+    documents=_documents,
+    waivers=_waivers,
+)

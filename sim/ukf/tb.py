@@ -1,0 +1,321 @@
+"""cocotb testbench of a generated UKF core, driven as software would drive it, through
+cocotbext-axi's ``AxiMaster``: bursts for the buffer's matrices, single beats for the
+registers, random idle cycles and backpressure on every channel.
+
+Every word read back is compared with the bit-exact golden model
+(:func:`kfgen.sim.linalg.exec.run` on the same step programs), every step's cycles with the
+manifest's ``cycles``; the estimates after the iterations are held against the float64
+reference (:class:`kfgen.sim.ukf.reference.AugmentedUKF`).
+
+Environment: ``KFGEN_TB_MANIFEST``, the core's ``TOP.json``; ``KFGEN_TB_SEED`` (default 1);
+``KFGEN_TB_ITERATIONS`` (default 5).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+
+import cocotb
+import numpy as np
+from cocotb.clock import Clock
+from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
+from cocotbext.axi import AxiBus, AxiMaster, AxiResp
+
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import programs
+from kfgen.sim.linalg.exec import from_words, run, to_words
+from kfgen.sim.streams import StreamChecker
+
+X0 = [0.5, -1.25]
+P0 = [[0.4, 0.1], [0.1, 0.3]]
+
+
+# ------------------------------------------------------------------ the application's models
+
+def f(x, w, u=None, dt=None):
+    """A nonlinear motion model on the state x and its process noise w (software's f)."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.array(x)
+    out[0] = x[0] + 0.1 * x[-1] + 0.01 * np.sin(x[0])
+    out[-1] = 0.95 * x[-1]
+    out[: len(w)] += w
+    return out
+
+
+def h(x, v):
+    """A range-like observation of the moved state with its measurement noise (software's h)."""
+    x = np.asarray(x, dtype=np.float64)
+    m = len(v)
+    return np.array([np.sqrt(x[i % len(x)] ** 2 + 1.0 + i) for i in range(m)]) + v
+
+
+class TB:
+    def __init__(self, dut):
+        self.dut = dut
+        self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+        self.params = UkfParams(**self.manifest["parameters"])
+        self.ukf = programs(self.params)
+        self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
+        self.gold = self.layout.initial_memory()
+        self.regs = {r["name"]: r for r in self.manifest["registers"]}
+        self.mems = {mm["name"]: mm for mm in self.manifest["memories"]}
+        self.words = self.mems["x"]["words_per_element"]
+        self.rng = np.random.default_rng(int(os.environ.get("KFGEN_TB_SEED", "1")))
+        self.cycle = 0
+        self.w_beats, self.irq_rises = [], []
+        cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+        self.axi = AxiMaster(AxiBus.from_prefix(dut, "s_axi"), dut.clk, dut.rst)
+        logging.getLogger(f"cocotb.{dut._name}.s_axi").setLevel(logging.WARNING)
+        self.checkers = [
+            StreamChecker("R", dut.s_axi_rvalid, dut.s_axi_rready,
+                          {k: getattr(dut, f"s_axi_{k}") for k in ("rid", "rdata", "rresp", "rlast")}),
+            StreamChecker("B", dut.s_axi_bvalid, dut.s_axi_bready,
+                          {k: getattr(dut, f"s_axi_{k}") for k in ("bid", "bresp")}),
+        ]
+        for ch in (self.axi.write_if.aw_channel, self.axi.write_if.w_channel, self.axi.read_if.ar_channel,
+                   self.axi.write_if.b_channel, self.axi.read_if.r_channel):
+            ch.set_pause_generator(self._pauses())
+
+    def _pauses(self):
+        rng = np.random.default_rng(self.rng.integers(1 << 32))
+        while True:
+            yield bool(rng.random() < 0.3)
+
+    async def reset(self):
+        self.dut.rst.value = 1
+        await ClockCycles(self.dut.clk, 3)
+        self.dut.rst.value = 0
+        await RisingEdge(self.dut.clk)
+        cocotb.start_soon(self._monitor())
+
+    async def _monitor(self):
+        """Once a clock, before the rising edge: handshake rules, W beats and irq rises."""
+        dut, irq = self.dut, 0
+        while True:
+            await FallingEdge(dut.clk)
+            await ReadOnly()
+            self.cycle += 1
+            for c in self.checkers:
+                c.sample(self.cycle)
+            if dut.s_axi_wvalid.value == 1 and dut.s_axi_wready.value == 1:
+                self.w_beats.append(self.cycle)
+            now = int(dut.irq.value)
+            if now and not irq:
+                self.irq_rises.append(self.cycle)
+            irq = now
+
+    # ------------------------------------------------------------- registers
+    def field(self, reg, name):
+        return next(f for f in self.regs[reg]["fields"] if f["name"] == name)
+
+    def bits(self, reg, **values):
+        word = 0
+        for name, v in values.items():
+            fd = self.field(reg, name)
+            word |= (fd["values"][v] if isinstance(v, str) else int(v)) << fd["lsb"]
+        return word
+
+    async def read_reg(self, reg, word=0):
+        got = await self.axi.read(self.regs[reg]["offset"] + 4 * word, 4)
+        assert got.resp == AxiResp.OKAY, (reg, got.resp)
+        return int.from_bytes(got.data, "little")
+
+    async def write_reg(self, reg, value):
+        return (await self.axi.write(self.regs[reg]["offset"], value.to_bytes(4, "little"))).resp
+
+    # ------------------------------------------------------------- buffer
+    def _bytes(self, words):
+        return b"".join(w.to_bytes(4 * self.words, "little") for w in words)
+
+    def _words(self, data):
+        step = 4 * self.words
+        return [int.from_bytes(data[i:i + step], "little") for i in range(0, len(data), step)]
+
+    async def put(self, name, values, expect=AxiResp.OKAY):
+        """Write region ``name`` in one burst (the golden memory too, if it is accepted)."""
+        mem, reg = self.mems[name], self.layout[name]
+        words = to_words(self.fmt, np.ravel(values))
+        assert len(words) == reg.size
+        resp = (await self.axi.write(mem["offset"], self._bytes(words))).resp
+        assert resp == expect, (name, resp)
+        if resp == AxiResp.OKAY:
+            self.gold[reg.base:reg.base + reg.size] = words
+        return words
+
+    async def get_words(self, name, expect=AxiResp.OKAY):
+        mem, reg = self.mems[name], self.layout[name]
+        got = await self.axi.read(mem["offset"], reg.size * 4 * self.words)
+        assert got.resp == expect, (name, got.resp)
+        return self._words(got.data)
+
+    async def check(self, name):
+        """Read region ``name`` by burst: every word equals the golden model's; its values."""
+        reg = self.layout[name]
+        got = await self.get_words(name)
+        want = self.gold[reg.base:reg.base + reg.size]
+        bad = [(i, hex(g), hex(w)) for i, (g, w) in enumerate(zip(got, want)) if g != w]
+        assert not bad, (name, bad[:8])
+        return np.array(from_words(self.fmt, got)).reshape(reg.rows, reg.cols)
+
+    # ------------------------------------------------------------- steps
+    async def start(self, step):
+        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, step=step))
+        return resp
+
+    async def step(self, name):
+        """Run ``name`` in hardware (start, wait for irq) and in the golden model; check the
+        status, the cycles against the manifest, and clear the status."""
+        st = run(self.ukf.steps[name], self.gold)
+        beats = len(self.w_beats)
+        rises = len(self.irq_rises)
+        assert await self.start(name) == AxiResp.OKAY
+        if len(self.irq_rises) == rises:
+            await RisingEdge(self.dut.irq)
+            await RisingEdge(self.dut.clk)  # the monitor has recorded the rise
+        # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1 after
+        # edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next one
+        measured = self.irq_rises[rises] - self.w_beats[beats] - 1
+        assert measured == self.manifest["cycles"][name], (name, measured, self.manifest["cycles"][name])
+        status = await self.read_reg("STATUS")
+        want = self.bits("STATUS", done=1, err_pivot=st.pivot, err_nan=st.nan)
+        assert status == want, (name, hex(status), hex(want))
+        assert await self.write_reg("STATUS", status) == AxiResp.OKAY  # w1c
+        assert await self.read_reg("STATUS") == 0
+        return st, measured
+
+
+async def setup(dut):
+    tb = TB(dut)
+    await tb.reset()
+    enable = tb.bits("IRQ_ENABLE", done=1, err_pivot=1, err_nan=1, err_busy=1)
+    assert await tb.write_reg("IRQ_ENABLE", enable) == AxiResp.OKAY
+    assert await tb.read_reg("IRQ_ENABLE") == enable
+    return tb
+
+
+def noise(tb):
+    p = tb.params
+    Q = np.diag(np.linspace(0.02, 0.03, p.nw))
+    R = np.diag(np.linspace(0.05, 0.06, p.nv))
+    return Q, R
+
+
+async def load(tb, x, P):
+    Q, R = noise(tb)
+    await tb.put("x", x)
+    await tb.put("P", P)
+    await tb.put("Q", Q)
+    await tb.put("R", R)
+
+
+@cocotb.test()
+async def iterations(dut):
+    """ID, then several UKF iterations (sig_gen, f, predict, h, update) with every word
+    checked, the cycles measured, and the result against the float64 reference."""
+    tb = await setup(dut)
+    p = tb.params
+    n, m, nw, nv = p.n, p.m, p.nw, p.nv
+    ident = await tb.read_reg("ID") | await tb.read_reg("ID", 1) << 32
+    for fd in tb.regs["ID"]["fields"]:
+        assert ident >> fd["lsb"] & ((1 << fd["width"]) - 1) == fd["reset"], fd["name"]
+    assert (ident >> 32 & 0xFF, ident >> 56 & 0xFF, ident >> 22 & 0x3FF) == (n, m, p.pes)
+    x0 = np.resize(X0, n)
+    P0m = np.eye(n) * 0.3
+    P0m[:2, :2] = np.array(P0)[:n, :n] if n >= 2 else P0m[:2, :2]
+    Q, R = noise(tb)
+    await load(tb, x0, P0m)
+    ref = AugmentedUKF_ref(p, x0, P0m, Q, R)
+    truth = np.array(x0)
+    cycles = {}
+    for it in range(int(os.environ.get("KFGEN_TB_ITERATIONS", "5"))):
+        st, cycles["sig_gen"] = await tb.step("sig_gen")
+        assert not st.pivot
+        chi = await tb.check("sigma_points")  # N points x M
+        pts_f = np.array([f(c[:n], c[n:n + nw]) for c in chi])
+        words_f = await tb.put("sigma_points_f", pts_f)
+        _, cycles["predict"] = await tb.step("predict")
+        await tb.check("x")
+        await tb.check("P")
+        moved = np.array(from_words(tb.fmt, words_f)).reshape(p.N, n)
+        await tb.put("sigma_points_h", np.array([h(xf, c[n + nw:]) for xf, c in zip(moved, chi)]))
+        truth = f(truth, np.zeros(nw))
+        z = h(truth, np.zeros(nv)) + tb.rng.normal(0, 0.1, m)
+        await tb.put("z", z)
+        _, cycles["update"] = await tb.step("update")
+        x = await tb.check("x")
+        P = await tb.check("P")
+        ref.predict()
+        ref.update(z)
+        dut._log.info("iteration %d: cycles %s, x %s", it, cycles, x.ravel())
+    # the bit-exact model's estimate (binary32 or whatever format) against the float64 one
+    scale = max(1.0, float(np.max(np.abs(ref.x))))
+    tol = {"binary64": 1e-12, "binary32": 1e-4}.get(p.format, 5e-2)
+    assert np.max(np.abs(x.ravel() - ref.x)) <= tol * scale, (x.ravel(), ref.x)
+    assert np.max(np.abs(P - ref.P)) <= tol * max(1.0, float(np.max(np.abs(ref.P)))), (P, ref.P)
+    assert cycles == tb.manifest["cycles"]
+
+
+def AugmentedUKF_ref(p, x0, P0, Q, R):
+    from kfgen.sim.ukf.reference import AugmentedUKF
+    return AugmentedUKF(p.n, p.nw, p.nv, p.m, f, h, p.w0, x0, P0, Q, R)
+
+
+async def wait_idle(tb):
+    busy = tb.field("STATUS", "busy")["lsb"]
+    while (await tb.read_reg("STATUS")) >> busy & 1:
+        pass
+
+
+@cocotb.test()
+async def errors(dut):
+    """Holes, read-only blocks, writes while busy, start while busy, soft reset mid-step,
+    a P that is not positive definite."""
+    tb = await setup(dut)
+    p = tb.params
+    axi = tb.axi
+    # holes: between the registers and the buffer, and past the buffer's end
+    last = max(mm["offset"] + mm["shape"][0] * mm["shape"][1] * 4 * tb.words for mm in tb.mems.values())
+    for addr in (0x18, tb.manifest["bus"]["size"] // 2 - 4, last):
+        got = await axi.read(addr, 4)
+        assert (got.resp, got.data) == (AxiResp.SLVERR, bytes(4)), hex(addr)
+        assert (await axi.write(addr, b"\xff" * 4)).resp == AxiResp.SLVERR, hex(addr)
+    # read-only: ID and sigma_points
+    assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
+    await tb.put("sigma_points", np.zeros((p.N, p.M)), expect=AxiResp.SLVERR)
+    # a partial strobe on the buffer is refused (whole words only)
+    x = tb.mems["x"]["offset"]
+    assert (await axi.write(x + 1, b"\x12")).resp == AxiResp.SLVERR
+    Q, R = noise(tb)
+    await load(tb, [0.5] * p.n, np.eye(p.n) * 0.4)
+    # while busy: a buffer write answers SLVERR and changes nothing; start is refused
+    assert await tb.start("sig_gen") == AxiResp.OKAY
+    assert await tb.read_reg("STATUS") & 1, "busy"
+    await tb.put("x", [9.0] * p.n, expect=AxiResp.SLVERR)
+    await tb.get_words("x", expect=AxiResp.SLVERR)  # buffer reads while busy: SLVERR
+    assert await tb.start("predict") == AxiResp.SLVERR
+    assert await tb.read_reg("STATUS") & 1
+    assert dut.irq.value == 1  # err_busy
+    run(tb.ukf.steps["sig_gen"], tb.gold)
+    await wait_idle(tb)
+    status = await tb.read_reg("STATUS")
+    assert status == tb.bits("STATUS", done=1, err_busy=1), hex(status)
+    await tb.check("x")
+    await tb.check("sigma_points")
+    await tb.write_reg("STATUS", status)
+    # soft reset mid-step: idle at once, STATUS clear, no done, no irq
+    assert await tb.start("sig_gen") == AxiResp.OKAY
+    await ClockCycles(dut.clk, tb.manifest["cycles"]["sig_gen"] // 2)
+    assert await tb.write_reg("CTRL", tb.bits("CTRL", reset=1)) == AxiResp.OKAY
+    assert await tb.read_reg("STATUS") == 0
+    await ClockCycles(dut.clk, tb.manifest["cycles"]["sig_gen"])
+    assert await tb.read_reg("STATUS") == 0 and dut.irq.value == 0
+    await tb.step("sig_gen")  # usable again, and the step ends as one run would
+    await tb.check("sigma_points")
+    # a P that is not positive definite: err_pivot, and the core is idle
+    await tb.put("P", np.eye(p.n) - 2 * (1 - np.eye(p.n)))
+    st, _ = await tb.step("sig_gen")
+    assert st.pivot
+    assert not await tb.read_reg("STATUS") & 1
+    await tb.check("sigma_points")

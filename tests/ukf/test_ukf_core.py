@@ -1,0 +1,151 @@
+"""The UKF core end to end: ``kfgen ukf`` output (files, manifest, lint), then one Verilator
+build driven through AXI4 by cocotbext-axi (:mod:`kfgen.sim.ukf.tb`): several iterations with
+every word against the golden model and the cycles against the manifest, and the bus and
+fault cases."""
+
+import json
+
+import pytest
+
+from kfgen.hdl.linalg.engine import OVERHEAD
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import schedules
+from kfgen.sim.toolchain import lint
+from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+
+from conftest import kfgen
+
+TOP = "ukf_small"
+SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
+         "--pes", "1", "--format", "binary32", "--w0", "0.25"]
+
+
+@pytest.fixture(scope="module")
+def rtl(build_root):
+    out = build_root / "ukf_core"
+    kfgen("ukf", *SMALL, "--name", TOP, "-o", out)
+    return out
+
+
+def test_files_and_manifest(rtl):
+    names = sorted(p.name for p in rtl.glob(f"{TOP}.*"))
+    assert names == sorted(f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md"))
+    man = json.loads((rtl / f"{TOP}.json").read_text())
+    params = UkfParams(**man["parameters"])
+    assert (params.n, params.m, params.nw, params.nv, params.w0) == (2, 1, 1, 1, 0.25)
+    scheds = schedules(params)
+    assert man["cycles"] == {k: s.cycles + OVERHEAD for k, s in scheds.items()}
+    assert {r["name"] for r in man["registers"]} == {"ID", "CTRL", "STATUS", "IRQ_ENABLE"}
+    assert man["engine"]["program_store"]["bits"] > 0
+    assert "irq" in {p["name"] for p in man["ports"]}
+
+
+def test_lint(rtl):
+    rc, messages = lint(rtl / f"{TOP}.v")
+    assert rc == 0 and not messages, "\n".join(messages)
+
+
+@pytest.mark.parametrize("how", ["option", "config"])
+def test_no_irq(tmp_path, how):
+    if how == "option":
+        kfgen("ukf", *SMALL, "--no-irq", "--name", "ukf_quiet", "-o", tmp_path)
+    else:
+        (tmp_path / "c.toml").write_text("irq = false\nname = 'ukf_quiet'\n")
+        kfgen("ukf", *SMALL, "--config", tmp_path / "c.toml", "-o", tmp_path)
+    man = json.loads((tmp_path / "ukf_quiet.json").read_text())
+    assert man["parameters"]["irq"] is False
+    assert "irq" not in {p["name"] for p in man["ports"]}
+    assert "IRQ_ENABLE" not in {r["name"] for r in man["registers"]}
+    assert "--no-irq" in (tmp_path / "ukf_quiet.v").read_text().split("\n\n")[0]
+
+
+@pytest.mark.parametrize("args,says", [
+    (["--states", "0"], "--states: "),
+    (["--pes", "99"], "--pes: "),
+    (["--w0", "1"], "--w0: "),
+    (["--format", "binary128"], "--format: "),
+    (["--address-width", "5"], "--address-width: "),
+])
+def test_bad_values_exit_2(tmp_path, args, says):
+    proc = kfgen("ukf", *args, "-o", tmp_path / "x", check=False)
+    assert proc.returncode == 2 and proc.stderr.startswith(f"kfgen: error: {says}")
+    assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
+
+
+@pytest.fixture(scope="module")
+def sim(rtl):
+    return build_ukf_core(rtl, TOP)
+
+
+@pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
+def test_cocotb(rtl, sim, tests):
+    """Both cases on one build (n = 2, m = 1, nw = nv = 1, P = 1, binary32)."""
+    run_ukf(sim, rtl, TOP, tests, tests[0])
+
+
+@pytest.mark.full
+@pytest.mark.parametrize("extra", [["--format", "binary64", "--pes", "3"]], ids=["binary64_p3"])
+def test_cocotb_other_configurations(build_root, extra):
+    """Two-word elements (the low half held until the high half) and several PEs: one build each."""
+    top = "ukf_" + "_".join(a.lstrip("-").replace("-", "") for a in extra)
+    out = build_root / top
+    kfgen("ukf", *SMALL, *extra, "--name", top, "-o", out)
+    rc, messages = lint(out / f"{top}.v")
+    assert rc == 0 and not messages, "\n".join(messages)
+    runner = build_ukf_core(out, top)
+    run_ukf(runner, out, top, ["iterations", "errors"], "all")
+
+
+def test_two_word_elements_in_amaranth():
+    """binary64 in Amaranth's simulator, on the back end's word bus: a low half is held until
+    its high half is written, both halves read back, partial strobes and sigma_points refused."""
+    from amaranth.hdl import Module
+    from amaranth.sim import Simulator
+
+    from kfgen.hdl.linalg.engine import Engine
+    from kfgen.hdl.ukf.core import Backend
+    from kfgen.hdl.ukf.regmap import ukf_map
+
+    params = UkfParams(states=2, observations=1, process_noise=1, measurement_noise=1, format="binary64")
+    rmap = ukf_map(params)
+    engine = Engine(schedules(params))
+    back = Backend(params, engine)
+    top = Module()
+    top.submodules.engine, top.submodules.back = engine, back
+    bus = back.bus
+    x = rmap["x"].address(1) // 4  # element 1 of x: word addresses x, x + 1
+    sp = rmap["sigma_points"].address(0) // 4
+    lo, hi = 0x89ABCDEF, 0x01234567
+
+    async def tb(ctx):
+        async def write(addr, data, strb=0xF):
+            ctx.set(bus.w_addr, addr)
+            ctx.set(bus.w_data, data)
+            ctx.set(bus.w_strb, strb)
+            ctx.set(bus.w_en, 1)
+            err = ctx.get(bus.w_err)
+            await ctx.tick()
+            ctx.set(bus.w_en, 0)
+            return err
+
+        async def read(addr):
+            ctx.set(bus.r_addr, addr)
+            ctx.set(bus.r_en, 1)
+            await ctx.tick()
+            ctx.set(bus.r_en, 0)
+            return ctx.get(bus.r_data), ctx.get(bus.r_err)
+
+        assert not await write(x, lo)
+        assert await read(x) == (0, 0) and await read(x + 1) == (0, 0)  # held, not written
+        assert not await write(x + 1, hi)
+        assert await read(x) == (lo, 0) and await read(x + 1) == (hi, 0)
+        assert await write(x + 1, 0xFFFF, strb=0x3)  # partial strobe: SLVERR, nothing changes
+        assert await read(x + 1) == (hi, 0)
+        assert not await write(x, 0, strb=0)  # no strobe: OKAY, nothing written
+        assert await write(sp, 1) and await write(sp + 1, 1)  # read-only region
+        assert await read(sp + 1) == (0, 0)
+
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    sim.add_testbench(tb)
+    sim.run()
