@@ -13,7 +13,7 @@ from kfgen.hdl.ukf.steps import schedules
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from conftest import kfgen
+from conftest import VERILATOR_CACHE, kfgen
 
 TOP = "ukf_small"
 SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
@@ -74,9 +74,11 @@ def test_bad_values_exit_2(tmp_path, args, says):
 
 @pytest.fixture(scope="module")
 def sim(rtl):
-    return build_ukf_core(rtl, TOP)
+    return build_ukf_core(rtl, TOP, VERILATOR_CACHE)
 
 
+@pytest.mark.verilator
+@pytest.mark.xdist_group("ukf_core")
 @pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (n = 2, m = 1, nw = nv = 1, P = 1, binary32)."""
@@ -92,8 +94,8 @@ def test_cocotb_other_configurations(build_root, extra):
     kfgen("ukf", *SMALL, *extra, "--name", top, "-o", out)
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    runner = build_ukf_core(out, top)
-    run_ukf(runner, out, top, ["iterations", "errors"], "all")
+    model = build_ukf_core(out, top, VERILATOR_CACHE)
+    run_ukf(model, out, top, ["iterations", "errors"], "all")
 
 
 def test_two_word_elements_in_amaranth():
