@@ -1,3 +1,5 @@
+# amaranth: UnusedElaboratable=no
+# (Some tests build units with parameters the units must reject.)
 """`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus and Verilator."""
 
 import contextlib
