@@ -66,7 +66,14 @@ def _documents(params) -> dict[str, str]:
 
 def _waivers(params) -> str:
     from ..bus.axi4 import lint_waivers
-    return lint_waivers(params.name)
+    text = lint_waivers(params.name)
+    width = params.fmt.width
+    if width < 32:  # binary16, bfloat16, narrow eEmM: one element in the low bits of a bus word
+        text += (f"\n// An element narrower than the 32-bit bus word sits in its low {width} bits: a write\n"
+                 f"// ignores the high bits (a read returns them as 0).\n"
+                 f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
+                 f"-match \"Bits of signal are not used: 'back_bus__w_data'?31:{width}?\"\n")
+    return text
 
 
 CORE = CoreDescriptor(

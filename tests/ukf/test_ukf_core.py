@@ -85,13 +85,28 @@ def test_cocotb(rtl, sim, tests):
     run_ukf(sim, rtl, TOP, tests, tests[0])
 
 
-@pytest.mark.full
-@pytest.mark.parametrize("extra", [["--format", "binary64", "--pes", "3"]], ids=["binary64_p3"])
-def test_cocotb_other_configurations(build_root, extra):
-    """Two-word elements (the low half held until the high half) and several PEs: one build each."""
-    top = "ukf_" + "_".join(a.lstrip("-").replace("-", "") for a in extra)
+#: More configurations, one Verilator build each (about 20-30 s), both testbench cases on it:
+#: the chapter's size (7/6/7/6, M = 20: the default core) at P = 1 and 2, a small core in
+#: binary16 with more PEs than the small one, and in ``make test-full`` binary64 and the
+#: chapter's P = 5 and 10.
+CONFIGURATIONS = [
+    pytest.param([], id="m20_p1"),
+    pytest.param(["--pes", "2"], id="m20_p2"),
+    pytest.param([*SMALL, "--format", "binary16", "--pes", "3"], id="small_binary16_p3"),
+    pytest.param([*SMALL, "--format", "binary64", "--pes", "3"], id="small_binary64_p3", marks=pytest.mark.full),
+    pytest.param(["--pes", "5"], id="m20_p5", marks=pytest.mark.full),
+    pytest.param(["--pes", "10"], id="m20_p10", marks=pytest.mark.full),
+]
+
+
+@pytest.mark.verilator
+@pytest.mark.parametrize("args", CONFIGURATIONS)
+def test_cocotb_configurations(request, build_root, args):
+    """Every word against the golden model, the cycles against the manifest and the bus and
+    fault cases, on each configuration's own build (lint first)."""
+    top = "ukf_" + request.node.callspec.id
     out = build_root / top
-    kfgen("ukf", *SMALL, *extra, "--name", top, "-o", out)
+    kfgen("ukf", *args, "--name", top, "-o", out)
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
     model = build_ukf_core(out, top, VERILATOR_CACHE)
