@@ -73,6 +73,10 @@ class BankedMemory(wiring.Component):
         The memory's words at configuration (``geometry.size`` of them).
     reads, writes : int
         Lanes; the last of each is the lowest priority.
+    groups : list of int or None
+        Per write lane, its data source: lanes of one group always carry the same word (a
+        unit's result and its mirror), so a port muxes groups, not lanes. ``None``: a group
+        per lane.
 
     Members
     -------
@@ -82,8 +86,11 @@ class BankedMemory(wiring.Component):
     wr : In(WriteLane).array(writes)
     """
 
-    def __init__(self, geometry, width, init, reads, writes):
+    def __init__(self, geometry, width, init, reads, writes, groups=None):
         self._g, self._width, self._init = geometry, width, list(init)
+        self._groups = list(range(writes)) if groups is None else list(groups)
+        if len(self._groups) != writes:
+            raise ValueError(f"groups must name one group per write lane ({writes}), not {groups!r}")
         super().__init__({"rd": In(ReadLane(geometry, width)).array(reads),
                           "wr": In(WriteLane(geometry, width)).array(writes)})
 
@@ -100,7 +107,14 @@ class BankedMemory(wiring.Component):
                    for i in range(len(rd))]
         rows = [lane.addr.row for lane, _ in order]
         is_write = [int(w) for _, w in order]
-        wdata = [lane.data if w else 0 for lane, w in order]
+        # each write lane's group (its data source), in ``order``
+        wgroup = iter(self._groups[:-1])
+        order_group = [None if not w else (self._groups[-1] if lane is wr[-1] else next(wgroup))
+                       for lane, w in order]
+        group_data = {}
+        for (lane, w), grp in zip(order, order_group):
+            if w:
+                group_data.setdefault(grp, lane.data)
         for b in range(g.banks):
             words = self._init[b::g.banks]
             mem = memory.Memory(shape=unsigned(self._width), depth=g.rows,
@@ -122,13 +136,22 @@ class BankedMemory(wiring.Component):
                         for h, r, w, prior in zip(hits, rows, is_write, _prefix_or(m, b, hits))])
                     hits = _signals(m, f"b{b}_hit1", [h & ~s for h, s in zip(hits, shared)])
             datas = []
-            for hit, row, write, hs in ports:
+            for port, (hit, row, write, hs) in enumerate(ports):
                 rp = mem.read_port()
                 wp = mem.write_port()
+                # the port's write lane (if its first hit is a write), then its group's word
+                prior = _prefix_or(m, f"{b}_w{port}", hs)
+                sel = {}
+                for h, pr, grp in zip(hs, prior, order_group):
+                    if grp is not None:
+                        sel[grp] = sel.get(grp, 0) | (h & ~pr)
+                wdata = 0
+                for grp, sg in sel.items():
+                    wdata = wdata | Mux(sg, group_data[grp], 0)
                 m.d.comb += [
                     rp.addr.eq(row), wp.addr.eq(row),
                     wp.en.eq(hit & write),
-                    wp.data.eq(_first(hs, wdata)),
+                    wp.data.eq(wdata),
                 ]
                 datas.append(rp.data)
             port_data.append(Array(datas))

@@ -110,21 +110,24 @@ class Engine(wiring.Component):
         g = code.geometry
         units = []
         for name, img in code.streams.items():
-            layout = instruction_layout(img.unit, g, code.widths)
+            mirror = any(w["mirror"] for w in img.words)  # else one write lane, no dst1
+            layout = instruction_layout(img.unit, g, code.widths, mirror)
             stream = InstructionStream(img, layout)
             m.submodules[f"{name}_stream"] = ResetInserter(self.halt)(stream)
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
             else:
                 stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "copy": None}[img.unit]
-                unit = SharedUnit(img.unit, fmt, g, layout, stages=stages)
+                unit = SharedUnit(img.unit, fmt, g, layout, stages=stages,
+                                  cycles_per_op=mc.interval(img.unit))
             m.submodules[name] = ResetInserter(self.halt)(unit)  # no write in flight
             m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]
             units.append((stream, unit))
         reads = [lane for _, u in units for lane in u.rd]
         writes = [lane for _, u in units for lane in u.wr]
+        groups = [k for k, (_, u) in enumerate(units) for _ in u.wr]  # a unit's lanes carry one word
         m.submodules.memory = mem = BankedMemory(g, fmt.width, self._layout.initial_memory(),
-                                                 len(reads) + 1, len(writes) + 1)
+                                                 len(reads) + 1, len(writes) + 1, groups + [len(units)])
         for a, b in zip(reads, mem.rd):
             wiring.connect(m, a, b)
         for a, b in zip(writes, mem.wr):

@@ -9,8 +9,10 @@ The machine (:class:`Machine`):
   previous result meets the next product with no FIFO), one issue per PE per cycle. ``init``
   (else the addend is ``-0``) is read one cycle before the first issue, on the PE's third
   read lane, so that no cycle of one accumulation needs more than two reads.
-* One divider and one square root, pipelined: one issue each per cycle; one move unit for
-  copies (read a word, write it back; latency 0 beyond the read).
+* One divider and one square root, each issuing once every ``div_interval`` /
+  ``sqrt_interval`` cycles (1: pipelined; more: an iterative unit, far smaller, which is
+  enough for the rare pivots and sqrt(D)); one move unit for copies (read a word, write it
+  back; latency 0 beyond the read).
 * Reads happen at issue and take ``read_latency`` cycles (a synchronous RAM); a result is
   written ``read_latency + L`` cycles after its (last) issue and may be read from the next
   cycle (no bypass). A mirrored result is written to both addresses in that cycle.
@@ -47,12 +49,15 @@ class Machine:
     banks: int | None = None  # None: 2 * pes + 2
     ports: int = 2
     read_latency: int = 1
+    div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
+    sqrt_interval: int = 1
 
     def __post_init__(self):
         if self.pes is not None and (isinstance(self.pes, bool) or not isinstance(self.pes, int)
                                      or self.pes < 1):
             raise ValueError(f"pes must be a positive integer or None, not {self.pes!r}")
-        for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports"):
+        for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports", "div_interval",
+                  "sqrt_interval"):
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k != "read_latency" else 0):
                 raise ValueError(f"{k} must be a positive integer, not {v!r}")
@@ -63,7 +68,12 @@ class Machine:
         return {"fma": self.fma_latency, "div": self.div_latency, "sqrt": self.sqrt_latency,
                 "copy": 0}[unit]
 
+    def interval(self, unit: str) -> int:
+        """Cycles from one issue to the next on ``unit`` (1: pipelined)."""
+        return {"div": self.div_interval, "sqrt": self.sqrt_interval}.get(unit, 1)
+
     def unlimited(self) -> Machine:
+        """Unlimited PEs, banks and ports, and a divider and square root per operation."""
         return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
                        None, self.ports, self.read_latency)
 
@@ -227,7 +237,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                     ok = pe is not None
                 else:
                     pe = 0
-                    ok = (op.unit, t) not in unit_busy
+                    ok = all((op.unit, t + k) not in unit_busy for k in range(mc.interval(op.unit)))
                 if ok and ports_free(rd, op.dst, t, woff):
                     break
                 t += 1
@@ -239,7 +249,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                     f += 1
                 pe_floor[pe] = f
             else:
-                unit_busy.add((op.unit, t))
+                unit_busy.update((op.unit, t + k) for k in range(mc.interval(op.unit)))
             for off, a in rd:
                 port_reads[a % mc.banks, t + off].add(a)
             for a in op.dst:

@@ -12,11 +12,13 @@ from .banks import addr_layout
 __all__ = ["instruction_layout", "InstructionStream"]
 
 
-def instruction_layout(unit: str, geometry, widths) -> data.StructLayout:
-    """A stream's instruction word (fields of :mod:`.microcode`)."""
+def instruction_layout(unit: str, geometry, widths, mirror: bool = True) -> data.StructLayout:
+    """A stream's instruction word (fields of :mod:`.microcode`); without ``mirror`` (no
+    instruction of the stream writes a second address) no ``mirror`` and ``dst1``."""
     addr = addr_layout(geometry)
-    fields = {"delta": unsigned(widths["delta"]), "a": addr, "b": addr, "dst": addr,
-              "dst1": addr, "mirror": 1, "check": 2}
+    fields = {"delta": unsigned(widths["delta"]), "a": addr, "b": addr, "dst": addr, "check": 2}
+    if mirror:
+        fields.update({"dst1": addr, "mirror": 1})
     if unit == "fma":
         fields.update({"count": unsigned(widths["count"]), "sa": addr, "sb": addr, "neg": 1,
                        "first": 1, "init_en": 1, "init": addr, "last": 1})

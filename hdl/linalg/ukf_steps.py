@@ -127,6 +127,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     F = lay.add("F", len(tri))
     L = lay.add("L", len(tri))
     D = lay.add("D", M)
+    rD = lay.add("rD", M)  # 1 / D_j: one division a pivot, the column's L by multiplies
     s = lay.add("s", M)
     g = lay.add("g", M)
     e = lay.add("e", M)
@@ -143,6 +144,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     FS = lay.add("FS", m, m)  # F of S's LDL^T below the diagonal (23)
     LS = lay.add("LS", m, m)
     DS = lay.add("DS", m)
+    rDS = lay.add("rDS", m)
     Pxz = lay.add("Pxz", n, m)
     Y = lay.add("Yfw", n, m)  # forward substitution
     U = lay.add("Udiv", n, m)  # after the division by D
@@ -163,7 +165,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     # ---- sig_gen -------------------------------------------------------------------------
     sg = Program("sig_gen", lay, fmt)
 
-    def ldl(prog, nb, a, f, l, dd):
+    def ldl(prog, nb, a, f, l, dd, rd):
         """LDL^T of an nb x nb block by (23)-(24), column by column; F_ij = L_ij D_j.
 
         Returns the addresses of F (column 0 is A's own), L and D. Every pivot D_j, the
@@ -181,16 +183,18 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
             for i in range(j + 1, nb):
                 if j:
                     prog.emit(Dot(fa[i, j], a(i, j), [(la[i, k], fa[j, k], True) for k in range(j)]))
+            if j + 1 < nb:
+                prog.emit(Div(rd(j), one, dd(j)))
             for i in range(j + 1, nb):
                 la[i, j] = l(i, j)
-                prog.emit(Div(la[i, j], fa[i, j], dd(j)))
+                prog.emit(Dot(la[i, j], None, [(fa[i, j], rd(j), False)]))
         return fa, la
 
     lsg = {}
     for b0, b1 in sizes.blocks:
         _, la = ldl(sg, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
-            lambda j, b0=b0: D(j + b0))
+            lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
         lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
     for j in range(M):  # sqrt(D) (22), folded into sigma's rows
         sg.emit(Sqrt(s(j), D(j)))
@@ -261,14 +265,16 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     covariance(up, dx, dlx, n, dz, dlz, m, Gxz, Pxz, False)  # Pxz (15)
     for i in range(m):
         up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
-    _, ls = ldl(up, m, S, FS, LS, DS)
+    _, ls = ldl(up, m, S, FS, LS, DS, rDS)
+    for j in range(m - 1, m):
+        up.emit(Div(rDS(j), one, DS(j)))
     for p in range(n):  # K L D L^T = Pxz (16), one row of K at a time
         y = {0: Pxz(p, 0)}
         for j in range(1, m):
             y[j] = Y(p, j)
             up.emit(Dot(y[j], Pxz(p, j), [(ls[j, i], y[i], True) for i in range(j)]))
         for j in range(m):
-            up.emit(Div(U(p, j) if j < m - 1 else K(p, j), y[j], DS(j)))
+            up.emit(Dot(U(p, j) if j < m - 1 else K(p, j), None, [(y[j], rDS(j), False)]))
         for j in range(m - 2, -1, -1):
             up.emit(Dot(K(p, j), U(p, j), [(ls[i, j], K(p, i), True) for i in range(m - 1, j, -1)]))
     for i in range(n):  # (17): K's column 0 is solved last, so it comes last

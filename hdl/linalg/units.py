@@ -9,7 +9,7 @@ machine, cycle for cycle.
 
 from __future__ import annotations
 
-from amaranth.hdl import Const, Module, Mux, Signal
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -46,18 +46,24 @@ def _advance(g, m, addr, stride):
     return out
 
 
-def _writeback_layout(g):
+def _writeback_layout(g, mirror=True):
     addr = addr_layout(g)
-    return data.StructLayout({"en": 1, "dst": addr, "mirror": 1, "dst1": addr, "check": 2})
+    return data.StructLayout({"en": 1, "dst": addr, "check": 2,
+                              **({"mirror": 1, "dst1": addr} if mirror else {})})
 
 
-def _delay(m, sig, cycles, name):
-    """``sig`` delayed by ``cycles`` registers."""
+def _delay(m, wb, cycles, name):
+    """The write-back ``wb`` delayed by ``cycles`` registers: ``en`` in registers that a reset
+    (a halt) clears, the rest without reset, so that it maps to shift-register LUTs."""
+    en, rest = wb.en, wb.as_value()[1:]
     for i in range(cycles):
-        nxt = Signal.like(sig, name=f"{name}_{i + 1}")
-        m.d.sync += nxt.eq(sig)
-        sig = nxt
-    return sig
+        nxt_en = Signal(name=f"{name}_en_{i + 1}")
+        nxt_rest = Signal(len(rest), name=f"{name}_{i + 1}", reset_less=True)
+        m.d.sync += [nxt_en.eq(en), nxt_rest.eq(rest)]
+        en, rest = nxt_en, nxt_rest
+    out = Signal(wb.shape(), name=name)
+    m.d.comb += out.eq(Cat(en, rest))
+    return out
 
 
 class _Unit(wiring.Component):
@@ -65,22 +71,28 @@ class _Unit(wiring.Component):
 
     def __init__(self, fmt, geometry, layout, reads):
         self._fmt, self._g = fmt, geometry
+        self._mirror = "mirror" in layout.members
         super().__init__({
             "fire": In(1), "ins": In(layout),
             "rd": Out(ReadLane(geometry, fmt.width)).array(reads),
-            "wr": Out(WriteLane(geometry, fmt.width)).array(2),
+            "wr": Out(WriteLane(geometry, fmt.width)).array(2 if self._mirror else 1),
             "pivot": Out(1), "nan": Out(1), "flags": Out(5),
         })
 
+    def _writeback(self):
+        return Signal(_writeback_layout(self._g, self._mirror))
+
     def _write(self, m, wb, y):
-        """Write ``y`` where ``wb`` (:func:`_writeback_layout`) says, and check it."""
+        """Write ``y`` where ``wb`` (:func:`_writeback_layout`) says, and check it. Every
+        write lane carries ``y``: the memory muxes one copy (``BankedMemory``'s groups)."""
         pivot, nan = faults(self._fmt, y, wb.check)
         m.d.comb += [
             self.wr[0].en.eq(wb.en), self.wr[0].addr.eq(wb.dst), self.wr[0].data.eq(y),
-            self.wr[1].en.eq(wb.en & wb.mirror), self.wr[1].addr.eq(wb.dst1),
-            self.wr[1].data.eq(y),
             self.pivot.eq(wb.en & pivot), self.nan.eq(wb.en & nan),
         ]
+        if self._mirror:
+            m.d.comb += [self.wr[1].en.eq(wb.en & wb.mirror), self.wr[1].addr.eq(wb.dst1),
+                         self.wr[1].data.eq(y)]
 
 
 class ProcessingElement(_Unit):
@@ -129,10 +141,11 @@ class ProcessingElement(_Unit):
         lf = fma.latency
         ins = self.ins
         addr = addr_layout(g)
+        wb_fields = ("dst", "check", *(("mirror", "dst1") if self._mirror else ()))
         slot = data.StructLayout({
             "active": 1, "rem": ins.count.shape(), "a": addr, "sa": addr, "b": addr, "sb": addr,
-            "neg": 1, "first": 1, "init_en": 1, "last": 1, "dst": addr, "mirror": 1, "dst1": addr,
-            "check": 2})
+            "neg": 1, "first": 1, "init_en": 1, "last": 1,
+            **{k: ins.shape().members[k] for k in wb_fields}})
         # the cycle before the start: the init read, and the new segment registered
         new = Signal(slot)
         m.d.comb += [self.rd[2].en.eq(self.fire & ins.first & ins.init_en),
@@ -141,8 +154,7 @@ class ProcessingElement(_Unit):
         with m.If(self.fire):
             m.d.sync += [new.rem.eq(ins.count)]
             m.d.sync += [getattr(new, k).eq(getattr(ins, k)) for k in
-                         ("a", "sa", "b", "sb", "neg", "first", "init_en", "last", "dst",
-                          "mirror", "dst1", "check")]
+                         ("a", "sa", "b", "sb", "neg", "first", "init_en", "last", *wb_fields)]
         # issue: the head of the ring, or the new segment
         ring = [Signal(slot, name=f"ring{i}") for i in range(lf)]
         head = Signal(slot)
@@ -168,13 +180,12 @@ class ProcessingElement(_Unit):
         first = Signal()
         init_en = Signal()
         init = Signal(fmt.width)
-        wb = Signal(_writeback_layout(g))
+        wb = self._writeback()
         m.d.sync += [
             valid.eq(head.active), neg.eq(head.neg), first.eq(head.first),
             init_en.eq(head.init_en), init.eq(self.rd[2].data),
             wb.en.eq(head.active & head.last & (head.rem == 1)),
-            wb.dst.eq(head.dst), wb.mirror.eq(head.mirror), wb.dst1.eq(head.dst1),
-            wb.check.eq(head.check),
+            *(getattr(wb, k).eq(getattr(head, k)) for k in wb_fields),
         ]
         sign = Const(fmt.sign_mask, fmt.width)
         m.d.comb += [
@@ -190,14 +201,17 @@ class ProcessingElement(_Unit):
 
 class SharedUnit(_Unit):
     """The divider (``a / b``), the square root (``sqrt(a)``) or the move unit (``a``): one
-    issue a cycle, operands read at the start ``t``, the result written at ``t + 1 + L``
-    (``L = 0`` for a move).
+    issue every ``cycles_per_op`` cycles, operands read at the start ``t``, the result
+    written at ``t + 1 + L`` (``L = 0`` for a move).
 
     Parameters
     ----------
     kind : "div", "sqrt" or "copy"
     fmt, geometry, layout, stages
         As :class:`ProcessingElement`; ``stages`` the unit's latency (``None``: its default).
+    cycles_per_op : int
+        The divider's or square root's initiation interval (1: pipelined; more: iterative,
+        issued no more often, as the scheduler guarantees).
 
     Members
     -------
@@ -205,10 +219,10 @@ class SharedUnit(_Unit):
     otherwise.
     """
 
-    def __init__(self, kind, fmt, geometry, layout, stages=None):
+    def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1):
         if kind not in ("div", "sqrt", "copy"):
             raise ValueError(f"kind must be div, sqrt or copy, not {kind!r}")
-        self._kind, self._stages = kind, stages
+        self._kind, self._stages, self._per_op = kind, stages, cycles_per_op
         super().__init__(fmt, geometry, layout, 2 if kind == "div" else 1)
 
     def elaborate(self, platform):
@@ -221,14 +235,15 @@ class SharedUnit(_Unit):
             m.d.sync += new.eq(ins)
         for i, lane in enumerate(self.rd):
             m.d.comb += [lane.en.eq(new_en), lane.addr.eq(new.a if i == 0 else new.b)]
-        wb = Signal(_writeback_layout(g))
-        m.d.sync += [wb.en.eq(new_en), wb.dst.eq(new.dst), wb.mirror.eq(new.mirror),
-                     wb.dst1.eq(new.dst1), wb.check.eq(new.check)]
+        wb = self._writeback()
+        m.d.sync += [wb.en.eq(new_en), wb.dst.eq(new.dst), wb.check.eq(new.check)]
+        if self._mirror:
+            m.d.sync += [wb.mirror.eq(new.mirror), wb.dst1.eq(new.dst1)]
         if self._kind == "copy":
             self._write(m, wb, self.rd[0].data)
             return m
         cls = FloatDiv if self._kind == "div" else FloatSqrt
-        m.submodules.unit = unit = cls(fmt, stages=self._stages)
+        m.submodules.unit = unit = cls(fmt, stages=self._stages, cycles_per_op=self._per_op)
         m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(self.rd[0].data)]
         if self._kind == "div":
             m.d.comb += unit.i_b.eq(self.rd[1].data)

@@ -16,6 +16,9 @@ def _docs() -> dict[str, Doc]:
         "process_noise": Doc("process-noise terms nw: Q is nw x nw, and f takes them with x", "", size),
         "measurement_noise": Doc("measurement-noise terms nv: R is nv x nv, and h takes them", "", size),
         "pes": Doc("processing elements P (FMAs working in parallel)", "", "an integer in 1..M, M = n + nw + nv"),
+        "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
+                        "their area; sig_gen takes longer) or pipelined (one operation a cycle); by default "
+                        "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
         "format": Doc("float format of every buffer word and of the arithmetic", "",
                       f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
                       "(any case)"),
@@ -51,7 +54,8 @@ def _extra(params, core) -> dict:
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
         "engine": {"pes": mc.pes, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
-                   "sqrt_latency": mc.sqrt_latency, "banks": mc.banks, "memory_words": layout.size,
+                   "sqrt_latency": mc.sqrt_latency, "div_interval": mc.div_interval,
+                   "sqrt_interval": mc.sqrt_interval, "banks": mc.banks, "memory_words": layout.size,
                    "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
                                      "bits": store.bits}},
     }

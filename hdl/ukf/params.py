@@ -16,7 +16,7 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError, check_name
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
@@ -24,6 +24,9 @@ SIZE_MAX = 255
 FORMAT_WIDTH_MAX = 64
 #: Widest AXI address the core accepts (a 32-bit processor's address space).
 ADDRESS_WIDTH_MAX = 32
+
+#: The shared divider and square root: one result bit a cycle, or one operation a cycle.
+DIV_SQRT = ("iterative", "pipelined")
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
@@ -41,6 +44,13 @@ class UkfParams:
         and :attr:`nv` read them by the chapter's letters).
     pes : int
         Processing elements P (FMA units working in parallel), 1..M.
+    div_sqrt : str or None
+        The shared divider and square root: ``iterative`` (one result bit a cycle, a new
+        operation every 26 and 25 cycles in binary32: about half their area, and enough for
+        the pivots' reciprocals and sqrt(D)) or ``pipelined`` (one operation a cycle: a
+        shorter sig_gen). Replaced by its lowercase name; ``None`` by ``iterative`` at P = 1,
+        where they are a third of the core, and ``pipelined`` above, where sig_gen's length
+        matters more than their area.
     format : str
         Float format of every buffer word: ``binary16``, ``bfloat16``, ``binary32``,
         ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
@@ -66,6 +76,7 @@ class UkfParams:
     process_noise: int = 7
     measurement_noise: int = 6
     pes: int = 1
+    div_sqrt: str | None = None
     format: str = "binary32"
     w0: float = 0.0
     irq: bool = True
@@ -80,6 +91,12 @@ class UkfParams:
         M = self.M
         if isinstance(self.pes, bool) or not isinstance(self.pes, int) or not 1 <= self.pes <= M:
             raise ParamError("pes", f"must be an integer in 1..M = {M} (M = n + nw + nv), not {self.pes!r}")
+        kind = self.div_sqrt.lower() if isinstance(self.div_sqrt, str) else self.div_sqrt
+        if kind is None:
+            kind = DIV_SQRT[0] if self.pes == 1 else DIV_SQRT[1]
+        if kind not in DIV_SQRT:
+            raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {self.div_sqrt!r}")
+        object.__setattr__(self, "div_sqrt", kind)
         try:
             fmt = FloatFormat.parse(self.format)
         except ValueError as exc:

@@ -22,8 +22,14 @@ def programs(params) -> UkfPrograms:
 
 
 def machine(params) -> Machine:
-    """P processing elements with the default pipelines of the FMA, divider and square root."""
-    return Machine(params.pes, *(cls(params.fmt).latency for cls in (FloatFMA, FloatDiv, FloatSqrt)))
+    """P processing elements (the FMA's default pipeline), 2P memory banks, and the divider and
+    square root of ``params.div_sqrt``: iterative (one result bit a cycle: an operation every
+    :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or pipelined."""
+    fmt = params.fmt
+    per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
+    div, sqrt = (cls(fmt, cycles_per_op=per_op[cls]) for cls in (FloatDiv, FloatSqrt))
+    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=2 * params.pes,
+                   div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval)
 
 
 def schedules(params, progs: UkfPrograms | None = None) -> dict:

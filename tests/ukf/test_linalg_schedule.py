@@ -5,25 +5,19 @@ from collections import Counter, defaultdict
 
 import pytest
 
-from kfgen.hdl.arith.float.div import FloatDiv
-from kfgen.hdl.arith.float.fma import FloatFMA
-from kfgen.hdl.arith.float.sqrt import FloatSqrt
 from kfgen.hdl.linalg.schedule import Machine, schedule
 from kfgen.hdl.linalg.store import encode, store_size
 from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import machine as ukf_machine
 
 CHAPTER = {1: 22600, 2: 13500, 5: 9050, 10: 7450}  # Table 4, cycles per iteration at 100 MHz
 
 
-def latencies(fmt):
-    units = [cls(fmt) for cls in (FloatFMA, FloatDiv, FloatSqrt)]
-    for u in units:
-        u._MustUse__silence = True  # only the latency is read
-    return [u.latency for u in units]
-
-
-def machine(pes, fmt="binary32"):
-    return Machine(pes, *latencies(fmt))
+def machine(pes, fmt="binary32", div_sqrt=None):
+    """The core's machine (:func:`kfgen.hdl.ukf.steps.machine`) for P PEs."""
+    return ukf_machine(UkfParams(states=pes, observations=1, process_noise=1, measurement_noise=1,
+                                 pes=pes, format=fmt, div_sqrt=div_sqrt))
 
 
 def check_schedule(s):
@@ -51,6 +45,9 @@ def check_schedule(s):
         for unit, pe, _, _ in lst:
             issues[unit, pe if unit == "fma" else 0, cyc] += 1
     assert max(issues.values()) == 1  # one issue per PE, divider, square root, move unit
+    for unit in ("div", "sqrt"):  # an iterative unit: issues at least its interval apart
+        starts = sorted(p.start for p in pl if p.unit == unit)
+        assert all(b - a >= mc.interval(unit) for a, b in zip(starts, starts[1:])), unit
     assert all(p.pe < mc.pes for p in pl)
     for p in pl:  # terms exactly Lf apart; result after the last term's latency
         op = ops[p.op]
@@ -69,30 +66,38 @@ def check_schedule(s):
     assert s.cycles == max(p.write for p in pl) + 1
 
 
-@pytest.mark.parametrize("sizes,pes,fmt", [
-    ((2, 1, 1, 1), 1, "binary32"), ((2, 1, 1, 1), 3, "binary64"),
-    ((7, 6, 7, 6), 1, "binary32"), ((7, 6, 7, 6), 2, "binary32"),
-    ((7, 6, 7, 6), 5, "binary32"), ((7, 6, 7, 6), 10, "binary32"),
+@pytest.mark.parametrize("sizes,pes,fmt,div_sqrt", [
+    ((2, 1, 1, 1), 1, "binary32", "iterative"), ((2, 1, 1, 1), 3, "binary64", "iterative"),
+    ((2, 1, 1, 1), 1, "binary32", "pipelined"),
+    ((7, 6, 7, 6), 1, "binary32", "iterative"), ((7, 6, 7, 6), 2, "binary32", "iterative"),
+    ((7, 6, 7, 6), 5, "binary32", "iterative"), ((7, 6, 7, 6), 10, "binary32", "iterative"),
+    ((7, 6, 7, 6), 2, "binary32", "pipelined"),
 ])
-def test_schedule_invariants(sizes, pes, fmt):
+def test_schedule_invariants(sizes, pes, fmt, div_sqrt):
     ukf = build_ukf(UkfSizes(*sizes), 0.25, fmt)
     for prog in ukf.steps.values():
-        check_schedule(schedule(prog, machine(pes, fmt)))
+        check_schedule(schedule(prog, machine(pes, fmt, div_sqrt)))
 
 
-def test_cycles_against_bounds_and_chapter(capsys):
-    """M = 20 (7/6/7/6), binary32: each step and the iteration within 1.3x of
+@pytest.mark.parametrize("div_sqrt", [None, "pipelined"], ids=["default", "pipelined"])
+def test_cycles_against_bounds_and_chapter(capsys, div_sqrt):
+    """M = 20 (7/6/7/6), binary32, the core's default divider and square root (iterative at
+    P = 1, pipelined above) and pipelined ones: each step within 1.3x of max(multiply-adds /
+    P, chain bound, the divider's and square root's occupancy), the iteration within 1.3x of
     max(multiply-adds / P, chain bound), and at least 2x fewer cycles than Table 4."""
     ukf = build_ukf(UkfSizes(7, 6, 7, 6), 0.0, "binary32")
-    lf, ld, ls = latencies("binary32")
     chain = {k: schedule(p, machine(1).unlimited()).cycles for k, p in ukf.steps.items()}
-    rows = [f"latencies: FMA {lf}, div {ld}, sqrt {ls}, read 1; chain bound {chain}"]
+    rows = [f"chain bound {chain}"]
     for pes in (1, 2, 5, 10):
-        scheds = {k: schedule(p, machine(pes)) for k, p in ukf.steps.items()}
+        mc = machine(pes, div_sqrt=div_sqrt)
+        rows.append(f"P={pes:2}: FMA {mc.fma_latency}, div {mc.div_latency} (every {mc.div_interval}), "
+                    f"sqrt {mc.sqrt_latency} (every {mc.sqrt_interval}), {mc.banks} banks")
+        scheds = {k: schedule(p, mc) for k, p in ukf.steps.items()}
         total = sum(s.cycles for s in scheds.values())
         fmas = sum(p.fma_count for p in ukf.steps.values())
-        for k, s in scheds.items():
-            bound = max(ukf.steps[k].fma_count / pes, chain[k])
+        for k, s in scheds.items():  # an iterative unit's occupancy bounds a step too
+            busy = max(sum(op.unit == u for op in ukf.steps[k].ops) * mc.interval(u) for u in ("div", "sqrt"))
+            bound = max(ukf.steps[k].fma_count / pes, chain[k], busy)
             assert s.cycles <= 1.3 * bound, (pes, k, s.cycles, bound)
         bound = max(fmas / pes, sum(chain.values()))
         assert total <= 1.3 * bound
