@@ -16,6 +16,7 @@ NETLISTS = {
     "castella8": "9e8de5dc0ad2a1fd8719a0efafc756b38cb570418772032192bc74bff5e3be80",
     "fpu_add": "813fd0acf13b8fa1073da173466658b5de1c5fcb8f6a95254f77e250367c45a9",
     "fpu_div": "2b9c2787f9d4010536c13b5cd2d835deee2fd64ee8011b40e7d2e782417e6788",
+    "fpu_exp": "d84b24fa3340f99d8e9e70e0be98cd97c8dc63e0a9d30f49ed5a32fc73fb2344",
     "fpu_f2i": "1b745472e3ecd97df70eaec4d01a77fca45ad8095a8cb47234dde7928ccbe84c",
     "fpu_fma": "c7abda6325b4b0e0c5de22e8b2480f7eb0e5e527d712505e6e9a18514b5c9813",
     "fpu_i2f": "3b5e399f4db9731fd98f60ae6a0d1b402f46e82d9ef794d2893e175abf0aed1d",

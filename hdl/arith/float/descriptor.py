@@ -12,7 +12,7 @@ __all__ = ["CORE"]
 def _docs() -> dict[str, Doc]:
     return {
         "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
-                  "float to int32 (round to nearest even, saturating)", "",
+                  "float to int32 (round to nearest even, saturating), e**a (faithfully rounded)", "",
                   "one of " + ", ".join(OPS) + " (any case)"),
         "format": Doc("floating-point format", "",
                       "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
@@ -36,7 +36,7 @@ def _docs() -> dict[str, Doc]:
 
 CORE = CoreDescriptor(
     name="fpu",
-    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i) in any format",
+    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i, exp) in any format",
     params=FpuParams,
     docs=_docs,
     build=lambda p: p.build(),

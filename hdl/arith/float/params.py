@@ -29,19 +29,21 @@ OPS = {
     "fma": (("i_a", "i_b", "i_c"), False, False),
     "i2f": (("i_a",), False, False),
     "f2i": (("i_a",), True, False),
+    "exp": (("i_a",), False, False),
 }
 
 
 def _unit_class(op: str):
     from .add import FloatAdd, FloatSub
     from .div import FloatDiv
+    from .exp import FloatExp
     from .f2i import FloatToInt
     from .fma import FloatFMA
     from .i2f import IntToFloat
     from .mul import FloatMul
     from .sqrt import FloatSqrt
     return {"add": FloatAdd, "sub": FloatSub, "mul": FloatMul, "div": FloatDiv, "sqrt": FloatSqrt,
-            "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt}[op]
+            "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt, "exp": FloatExp}[op]
 
 
 def _unit(op: str, fmt, subnormals: str, stages: int | None, cycles_per_op: int):
@@ -95,7 +97,7 @@ class FpuParams:
     Parameters
     ----------
     op : str
-        ``add``, ``sub``, ``mul``, ``div``, ``sqrt``, ``fma``, ``i2f`` or ``f2i``.
+        ``add``, ``sub``, ``mul``, ``div``, ``sqrt``, ``fma``, ``i2f``, ``f2i`` or ``exp``.
     format : str
         ``binary16``, ``bfloat16``, ``binary32``, ``binary64`` or ``eEmM``.
     subnormals : str

@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from .format import FloatFormat
 
 __all__ = ["CLOCK_MHZ", "LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
-           "prepare_delay", "round_delays", "StagePlans"]
+           "dsp_delay", "prepare_delay", "round_delays", "StagePlans"]
 
 #: The clock the default stage counts are designed for: an ECP5-85, binary32. The units placed
 #: by this model meet it by the model; add, sub, mul and fma have fixed defaults, measured
@@ -50,6 +50,12 @@ def tree_levels(width: int, fan_in: int = 2) -> int:
 def shifter_delay(width: int) -> float:
     """A barrel shifter over ``width`` bits (a 4:1 multiplexer takes a LUT and a PFUMX)."""
     return lut_delay(0.7 * tree_levels(width))
+
+
+def dsp_delay() -> float:
+    """A multiplier block's product (MULT18X18D without its registers), routing in and out
+    included: most of a stage, so a product gets one to itself."""
+    return 7.0
 
 
 def prepare_delay(fmt: FloatFormat, from_room: bool = False) -> float:
