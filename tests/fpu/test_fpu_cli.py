@@ -177,7 +177,7 @@ def test_every_spelling_gives_the_same_bytes(tmp_path, core):
 
 @pytest.mark.parametrize("args", [["--op", "add"], ["--op", "mul"], ["--op", "fma"], ["--op", "div"],
                                   ["--op", "sqrt", "--cycles-per-op", "4"], ["--op", "i2f"], ["--op", "f2i"],
-                                  ["--op", "add", "--subnormals", "ftz"]])
+                                  ["--op", "exp"], ["--op", "add", "--subnormals", "ftz"]])
 def test_icarus_compiles(tmp_path, args):
     kfgen("fpu", *args, "--name", "u", "-o", tmp_path)
     ic = subprocess.run([iverilog(), "-g2012", "-o", str(tmp_path / "u.vvp"), str(tmp_path / "u.v")],
