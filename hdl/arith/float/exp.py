@@ -11,8 +11,8 @@ from .exp_plan import CHUNK, exp_plan
 from .format import FloatFormat
 from .mul import LUT_ROWS, partial_products, sum_partial_products
 from .round import ROUND_BOUNDARIES, FloatUnit, prepare_exponent, round_pack, unpack
-from .timing import (StagePlans, carry_delay, dsp_delay, lut_delay, prepare_delay, round_delays,
-                     shifter_delay)
+from .timing import (StagePlans, block_ram_delay, carry_delay, dsp_delay, lut_delay, prepare_delay,
+                     round_delays, shifter_delay)
 
 __all__ = ["FloatExp"]
 
@@ -189,8 +189,11 @@ class FloatExp(FloatUnit):
             ("kln2", max(lut_delay(1) + _adder_levels(k_slices) * carry_delay(F), exponent)),
             ("r", max(lut_delay(1) + carry_delay(F), carry_delay(plan.k_bits + 3) + prepare_delay(fmt, True))),
         ]
-        # The table of e**A is read after "r", beside the first Horner step (a constant product),
-        # or before T Q's multipliers for degree 1.
+        # The table of e**A is read after "r", beside the first Horner step (a constant product,
+        # whose register becomes the table's own when a synthesis tool makes it a block RAM: T
+        # then passes to the next register, unused until T Q). For degree 1 T Q follows at
+        # once, so the table has two boundaries of its own: the register after the lookup and
+        # one more after a block RAM's slow clock-to-out.
         rom = lut_delay(max(1, a - 3))  # LUT4s, then the slice's wide-function multiplexers
         h_width = plan.coeff_top.bit_length()
         for name, z_bits, bits, const, constant in self._polynomial(plan):
@@ -205,9 +208,10 @@ class FloatExp(FloatUnit):
         if plan.degree > 1:
             pp, add = _product_delays(plan.q_z_bits - a, h_width)
             segments += [("q.pp", pp), ("q", add + carry_delay(plan.q_bits))]
+        else:
+            segments += [("table", rom), ("table.out", block_ram_delay())]
         pp, add = _product_delays(plan.t_bits + 1, plan.q_bits - a + 1)
-        segments += [("tq.pp", pp + (rom if plan.degree == 1 else 0.0)), ("tq", add),
-                     ("y", carry_delay(G + 1) + lut_delay(1))]
+        segments += [("tq.pp", pp), ("tq", add), ("y", carry_delay(G + 1) + lut_delay(1))]
         shift, *rest = round_delays(fmt, G + 1, True, leading_one=True, prepared=True)
         segments += list(zip(ROUND_BOUNDARIES + ("out",), [shift + lut_delay(1)] + rest))
         plans = StagePlans(segments)
@@ -288,6 +292,8 @@ class FloatExp(FloatUnit):
             v = cuts(name, h=result[:_step_width(plan, name)], z=v.z, t=v.t, **keep())
             h, h_bits = v.h, bits
         if plan.degree == 1:
+            v = cuts("table", z=v.z, t=v.t, **keep())
+            v = cuts("table.out", z=v.z, t=v.t, **keep())
             q = z_floor(plan.q_bits)
         else:
             zz = z_floor(plan.q_z_bits)

@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from .format import FloatFormat
 
 __all__ = ["CLOCK_MHZ", "LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
-           "dsp_delay", "prepare_delay", "round_delays", "StagePlans"]
+           "dsp_delay", "block_ram_delay", "prepare_delay", "round_delays", "StagePlans"]
 
 #: The clock the default stage counts are designed for: an ECP5-85, binary32. The units placed
 #: by this model meet it by the model; add, sub, mul and fma have fixed defaults, measured
@@ -56,6 +56,13 @@ def dsp_delay() -> float:
     """A multiplier block's product (MULT18X18D without its registers), routing in and out
     included: most of a stage, so a product gets one to itself."""
     return 7.0
+
+
+def block_ram_delay() -> float:
+    """What a table read from a block RAM adds after its register: a synthesis tool turns a
+    table whose output is registered into one (an ECP5 DP16KD without its output register
+    has a 5.6 ns clock-to-out, where a flip-flop has about 0.5 ns)."""
+    return 5.0
 
 
 def prepare_delay(fmt: FloatFormat, from_room: bool = False) -> float:
