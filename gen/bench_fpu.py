@@ -111,12 +111,20 @@ def _short_path(path: str) -> str:
     return f"{first} -> {last}, {len(cells)} cells, logic {logic:.1f} ns, routing {tail}"
 
 
+def _block_ram(row: dict) -> str:
+    """The block RAMs a unit's tables went into (ECP5 DP16KD, Xilinx 36 Kb), or ``""``."""
+    parts = [f"{n:g} {what}" for n, what in ((row.get("utilization", {}).get("DP16KD", 0), "ECP5 DP16KD"),
+                                               (row.get("bram36", 0), "Xilinx 36 Kb BRAM")) if n]
+    return ", ".join(parts)
+
+
 def render(rows: list[dict], args, seconds: float) -> str:
     """The table and its notes, as printed and written to ``bench_fpu.md``."""
     notes = [
         "",
         *(f"* ECP5 critical path, {r.get('label', r['op'])} {r['format']}: {_short_path(r['critical_path'])}."
           for r in rows if "critical_path" in r),
+        *(f"* Block RAM, {r.get('label', r['op'])} {r['format']}: {_block_ram(r)}." for r in rows if _block_ram(r)),
         f"* ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seed(s) {' '.join(map(str, args.seeds))}"
         f"{' (median reported)' if len(args.seeds) > 1 else ''}. "
         "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites). "
