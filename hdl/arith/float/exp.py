@@ -79,24 +79,26 @@ def _product_delays(width_a: int, width_b: int) -> tuple[float, float]:
 
 class FloatExp(FloatUnit):
     """``e**x``, faithfully rounded: the result is one of the two floats around ``e**x``
-    (an error below one unit in the last place), correctly rounded for about 99 % of inputs.
+    (an error below one unit in the last place), correctly rounded for 98 to 99.9 % of inputs.
 
     Algorithm (widths and constants per format from :func:`~.exp_plan.exp_plan`, whose
-    docstring lists them; ``p`` is the precision, ``G = p + 4`` the working bits):
+    docstring lists them; ``p`` is the precision, ``G`` the working bits, ``p + 4`` in the
+    named formats):
 
-    1. Range reduction (Cody and Waite, in fixed point). ``X = floor(|x| 2**F)`` (``F = G +
-       1`` fraction bits) by a right shift of the significand; ``|x| >= 2**I`` (``I`` the
-       least with ``2**I`` above ``(emax + 1) ln 2`` and ``(bias + m) ln 2``) only selects
-       overflow or zero. ``k = round(X / ln 2)`` from the top ``I + 4`` bits of ``X`` times
+    1. Range reduction (Cody and Waite, in fixed point). ``X = floor(|x| 2**F)`` (``F``, from
+       ``G`` to ``G + 2`` fraction bits) by a right shift of the significand; ``|x| >= 2**I``
+       (``I`` the least with ``2**I`` above ``0.7 (emax + 1)`` and ``0.7 (bias + m)``) only
+       selects overflow or zero. ``k = round(X / ln 2)`` from the top ``I + 4`` bits of ``X`` times
        ``1 / ln 2`` to ``I + 4`` bits, a constant product made of 16-entry tables (one per 4
        bits of the variable, one LUT4 per bit) and adders; ``|r| = |x - k ln 2| < 0.44``.
        ``r = +-(X - k ln 2)`` is computed modulo 1 in ``F`` bits: ``k ln 2`` comes from one
        such table per 4 bits of ``k`` holding ``j 16**i ln 2`` modulo 1, each entry rounded.
     2. ``e**r = e**A e**Z``: the top 8 bits of ``r`` (fewer in narrow formats) index a table
-       of ``e**A`` rounded to ``G`` bits; ``Z`` (the rest, ``0 <= Z < 2**-8``) goes into
-       ``Q ~ e**Z - 1``, its Taylor polynomial (degree 1 in formats up to ``p = 6``, 2 in
-       binary16 and bfloat16, 3 in binary32, 6 in binary64) in Horner form, each step's
-       product as narrow as its weight allows (``Z`` floored, the product floored);
+       of ``e**A`` rounded to ``G`` bits (a ROM, which synthesis may put in a block RAM
+       when a register follows it); ``Z`` (the rest, ``0 <= Z < 2**-8``) goes into ``Q ~
+       e**Z - 1``, its Taylor polynomial (degree 1, ``Q = Z``, in binary16, bfloat16 and
+       narrower formats; 3 in binary32; 6 in binary64) in Horner form, each step's product
+       as narrow as its weight allows (``Z`` floored, the product floored);
        ``y = T + T Q`` with ``T`` floored to ``G - 5`` bits in the product (``T Q < 2**-7``).
        The first Horner step multiplies by a constant (shifts and adds), the others by
        multiplier blocks and LUT rows as :class:`~.mul.FloatMul` does.
@@ -111,7 +113,7 @@ class FloatExp(FloatUnit):
     Horner step's floors and the Taylor remainder weighted by the powers of ``Z`` they meet,
     the product's floor, the sticky bit); :func:`~.exp_plan.exp_plan` adds them and picks
     the fewest work bits for which the relative error of ``y 2**k`` is below
-    ``2**-(p+1)`` (binary32: ``2**-25.3``). Rounding that to nearest gives one of the two
+    ``2**-(p+1)`` (binary32: ``2**-25.07``). Rounding that to nearest gives one of the two
     floats around ``e**x``: the error is under half the spacing above and a quarter of it
     below a power of two. The bound is also held below the distance from ``x`` to ``ln`` of
     the overflow threshold at the floats on either side of it, so the result overflows

@@ -17,8 +17,7 @@ from functools import lru_cache
 
 from .format import FloatFormat
 
-__all__ = ["ExpPlan", "exp_plan", "CHUNK", "K_FRAC", "MAX_INDEX_BITS", "ln2_bounds", "exp_bounds",
-           "ln_overflow_bounds"]
+__all__ = ["ExpPlan", "exp_plan", "CHUNK", "K_FRAC", "MAX_INDEX_BITS", "ln2_bounds", "exp_bounds"]
 
 #: The constant multipliers (``k * ln 2`` and ``x / ln 2``) take their variable this many bits
 #: at a time: a table of ``2**CHUNK`` constants per slice, one LUT4 per bit on an ECP5.
@@ -95,7 +94,7 @@ def _ln2_rounded(bits: int, multiple: int) -> int:
     return got
 
 
-def ln_overflow_bounds(fmt: FloatFormat, n: int) -> tuple[Fraction, Fraction]:
+def _ln_overflow_bounds(fmt: FloatFormat, n: int) -> tuple[Fraction, Fraction]:
     """Rationals around ``ln`` of the overflow threshold ``(2 - 2**-p) 2**emax`` (the least
     value that rounds to infinity), ``2**-n`` apart at most: ``(emax + 1) ln 2 + ln(1 - u)``,
     ``u = 2**-(p+1)``, the logarithm's series summed until its tail (below twice the next
@@ -201,12 +200,8 @@ class ExpPlan:
 
     @property
     def k_frac(self) -> int:
+        """Fraction bits of ``|x|`` that go into ``k``."""
         return K_FRAC
-
-    @property
-    def w_bits(self) -> int:
-        """Fraction bits of ``W`` (the last step's)."""
-        return self.steps[-1][1] if self.steps else 0
 
 
 def _widths(fmt: FloatFormat, guard: int, extra: int, degree: int, finer: int) -> dict | None:
@@ -310,7 +305,7 @@ def _overflow_margins(fmt: FloatFormat) -> tuple[Fraction, Fraction]:
     (``T`` the overflow threshold) and the one just above, ``x+``."""
     n = 2 * fmt.precision + 64
     while True:
-        lo, hi = ln_overflow_bounds(fmt, n)
+        lo, hi = _ln_overflow_bounds(fmt, n)
         top = _floor(lo).bit_length() - 1  # ln T >= 1 in every format
         ulp = Fraction(1 << top, 1 << fmt.frac_bits)
         below = _floor(lo / ulp)
