@@ -263,3 +263,17 @@ def test_cli_bad_app_exits_2(app_file, tmp_path, spec, says):
 def test_cli_app_only_for_cores_that_take_one(tmp_path):
     proc = kfgen("castella", "--app", NANOSAT, "-o", tmp_path / "x", check=False)
     assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --app: unknown option")
+
+
+# ---------------------------------------------------------------- Figure 12
+
+def test_figure12_with_an_extra_trace(tmp_path, capsys):
+    """``make plots``'s entry point on a short run, with one more trace from a file (as an RTL
+    co-simulation's would come)."""
+    from kfgen.sim.ukf.plots import main
+    np.savez(tmp_path / "more.npz", **{"RTL (Verilator)": np.full(20, 0.05)})
+    main(["-o", str(tmp_path / "fig"), "--steps", "20", "--traces", str(tmp_path / "more.npz")])
+    png = tmp_path / "fig" / "figure12.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    out = capsys.readouterr().out
+    assert "float64 reference" in out and "binary32 golden model" in out
