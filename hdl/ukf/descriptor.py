@@ -80,6 +80,12 @@ def _waivers(params) -> str:
     return text
 
 
+def _from_app(spec: str) -> dict:
+    # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
+    from kfgen.sim.ukf.app import load_app
+    return load_app(spec).core_parameters()
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -91,4 +97,5 @@ CORE = CoreDescriptor(
     examples=({},),
     documents=_documents,
     waivers=_waivers,
+    app=_from_app,
 )
