@@ -62,10 +62,11 @@ def _extra(params, core) -> dict:
 
 
 def _documents(params) -> dict[str, str]:
+    from kfgen.gen.cdriver import ukf_driver
     from kfgen.gen.regdoc import documents
 
     from .regmap import ukf_map
-    return documents(ukf_map(params), params.name)
+    return {**documents(ukf_map(params), params.name), **ukf_driver(params.name, params.format)}
 
 
 def _waivers(params) -> str:
