@@ -4,12 +4,13 @@
 trace, a trace being the attitude error (degrees) of one implementation after each
 iteration. ``make plots`` draws the float64 reference and the bit-exact binary32 golden
 model of the core (:mod:`kfgen.sim.ukf.accuracy`) over the nanosatellite scenario
-(:mod:`kfgen.sim.ukf.apps.nanosat`); more traces (the generated Verilog's, from a
-co-simulation) come in an ``.npz`` file, one array per trace name.
+(:mod:`kfgen.sim.ukf.apps.nanosat`), and with ``--rtl`` the generated Verilog's, from a
+co-simulation on Verilator (:func:`rtl_run`); more traces come in an ``.npz`` file, one
+array per trace name.
 
 Usage::
 
-    python -m kfgen.sim.ukf.plots -o sim/ukf/figures [--steps 1000] [--seed 1] [--traces FILE.npz]
+    python -m kfgen.sim.ukf.plots -o sim/ukf/figures [--steps 1000] [--seed 1] [--traces FILE.npz] [--rtl DIR]
 """
 
 from __future__ import annotations
@@ -19,16 +20,20 @@ from pathlib import Path
 
 import numpy as np
 
+from kfgen.hdl.ukf.params import UkfParams
+
 from .accuracy import run_golden, run_reference
 from .apps.nanosat import STEPS, Nanosat, attitude_error_deg
 
-__all__ = ["SEED", "REFERENCE", "GOLDEN", "figure12", "nanosat_runs", "main"]
+__all__ = ["SEED", "REFERENCE", "GOLDEN", "RTL", "figure12", "nanosat_runs", "rtl_run", "main"]
 
 SEED = 1
 REFERENCE = "float64 reference"
 GOLDEN = "binary32 golden model"
+RTL = "generated Verilog (co-simulation)"
 _STYLES = {REFERENCE: dict(color="tab:blue", lw=2.6, alpha=0.6),
-           GOLDEN: dict(color="black", lw=1.0, ls="--")}
+           GOLDEN: dict(color="black", lw=1.0, ls="--"),
+           RTL: dict(color="tab:orange", lw=0, marker=".", ms=3)}
 #: The chapter's claim after convergence (section 4.6), drawn as a line.
 CLAIM_DEG = 0.1
 
@@ -80,6 +85,25 @@ def nanosat_runs(steps: int = STEPS, seed: int = SEED) -> dict:
             "estimates": {REFERENCE: run_reference(app, sc), GOLDEN: run_golden(app, sc, "binary32")}}
 
 
+def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED) -> np.ndarray:
+    """The nanosatellite on the generated default core (binary32, P = 1) in a Verilator
+    co-simulation (:mod:`kfgen.sim.ukf.cosim`, every word checked against the golden model);
+    the estimates, (K, 7). About 0.3 s an iteration."""
+    from kfgen.gen.synth import write_core
+    from kfgen.hdl.ukf.descriptor import CORE
+
+    from .run import build_ukf_core, run_cosim
+
+    app = Nanosat()
+    rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name="ukf_nanosat"), work)
+    model = build_ukf_core(rtl, "ukf_nanosat", work / "verilator")
+    npz = rtl / "cosim.npz"
+    run_cosim(model, rtl, "ukf_nanosat", "python_processor", "figure12", f"{Nanosat.__module__}:Nanosat", steps,
+              seed=seed, out=npz)
+    with np.load(npz) as d:
+        return d["estimates"]
+
+
 def _summary(t, truth, estimates: dict) -> None:
     start = min(1.0, t[-1] / 2)  # after convergence: from the first second on (in a long run)
     after = t > start + 1e-9
@@ -100,8 +124,12 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--traces", metavar="FILE.npz", help="more traces: one array of attitude errors (degrees) "
                                                           "per trace name, one entry per iteration")
+    ap.add_argument("--rtl", metavar="DIR", help="also co-simulate the generated core (Verilator, the Python "
+                                                 "processor over AXI) in DIR and draw its trace")
     args = ap.parse_args(argv)
     runs = nanosat_runs(args.steps, args.seed)
+    if args.rtl:
+        runs["estimates"][RTL] = rtl_run(Path(args.rtl), args.steps, args.seed)
     t, truth = runs["t"], runs["truth"]
     traces = {name: attitude_error_deg(x[:, :4], truth[:, :4]) for name, x in runs["estimates"].items()}
     if args.traces:

@@ -26,7 +26,7 @@ def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool = False) -> Bu
 def run_ukf(model: Build, rtl_dir, top: str, tests: list[str], name: str, env: dict | None = None) -> None:
     """Run the testbench's ``tests`` (function names) on a build, in ``rtl_dir/runs``; fails with
     the log's tail."""
-    rtl_dir = Path(rtl_dir)
+    rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
     run_dir = rtl_dir / "runs"
     run_dir.mkdir(parents=True, exist_ok=True)
     pattern = "|".join(rf"kfgen\.sim\.ukf\.tb\.{t}\b" for t in tests)
@@ -55,14 +55,14 @@ def run_cosim(model: Build, rtl_dir, top: str, test: str, name: str, app: str, s
     """Run co-simulation ``test`` (``python_processor`` or ``c_processor``, :mod:`kfgen.sim.ukf.cosim`)
     of application ``app`` (``module:Class``) for ``steps`` iterations on a build; ``out``: an
     ``.npz`` for the estimates and cycles; ``driver``: the C driver's library (:func:`build_driver`)."""
-    rtl_dir = Path(rtl_dir)
+    rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
     run_dir = rtl_dir / "runs"
     run_dir.mkdir(parents=True, exist_ok=True)
     env = {"KFGEN_TB_MANIFEST": str(rtl_dir / f"{top}.json"), "COCOTB_TEST_FILTER": rf"kfgen\.sim\.ukf\.cosim\.{test}\b",
            "KFGEN_APP": app, "KFGEN_STEPS": str(steps), "KFGEN_SEED": str(seed), "KFGEN_BEATS": beats,
            "KFGEN_WAIT": wait}
     if out:
-        env["KFGEN_COSIM_OUT"] = str(out)
+        env["KFGEN_COSIM_OUT"] = str(Path(out).resolve())
     if driver:
-        env["KFGEN_DRIVER_LIB"] = str(driver)
+        env["KFGEN_DRIVER_LIB"] = str(Path(driver).resolve())
     run_test(model, "kfgen.sim.ukf.cosim", run_dir, name, env)
