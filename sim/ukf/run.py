@@ -66,3 +66,68 @@ def run_cosim(model: Build, rtl_dir, top: str, test: str, name: str, app: str, s
     if driver:
         env["KFGEN_DRIVER_LIB"] = str(Path(driver).resolve())
     run_test(model, "kfgen.sim.ukf.cosim", run_dir, name, env)
+
+
+def main(argv=None) -> int:
+    """``python -m kfgen.sim.ukf.run --app MODULE:CLASS [...]``: size a core for an application,
+    generate and build it, and co-simulate the application on it (every word checked against
+    the golden model); prints the cycles of an iteration and the estimate's distance from the
+    float64 reference."""
+    import argparse
+    import sys
+
+    import numpy as np
+
+    from kfgen.gen.synth import write_core
+    from kfgen.hdl.describe import ParamError
+    from kfgen.hdl.ukf.descriptor import CORE
+    from kfgen.hdl.ukf.params import UkfParams
+
+    from .accuracy import run_reference
+    from .app import AppError, load_app
+
+    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.ukf.run", description=main.__doc__.split("\n\n")[0])
+    ap.add_argument("--app", required=True, help="the application, module:Class or path/file.py:Class")
+    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
+    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
+    ap.add_argument("--format", default="binary32", help="binary32 (default) or binary64 for the C driver")
+    ap.add_argument("--processor", choices=("python", "c"), default="python",
+                    help="the Python software side or the generated C driver (default python)")
+    ap.add_argument("--beats", choices=("burst", "single"), default="burst", help="AXI bursts or single beats")
+    ap.add_argument("--wait", choices=("irq", "poll"), default="irq", help="wait for irq or poll STATUS")
+    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
+    ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
+    args = ap.parse_args(argv)
+    try:
+        if args.steps < 1:
+            raise ValueError(f"--steps must be a positive integer, not {args.steps}")
+        app = load_app(args.app)
+        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app")
+    except (AppError, ParamError, ValueError) as exc:
+        print(f"cosim: error: {exc}", file=sys.stderr)
+        return 2
+    work = Path(args.out)
+    rtl, _ = write_core(CORE, params, work)
+    model = build_ukf_core(rtl, params.name, work / "verilator", waves=args.waves)
+    driver = build_driver(rtl, params.name) if args.processor == "c" else None
+    npz = rtl / "cosim.npz"
+    run_cosim(model, rtl, params.name, f"{args.processor}_processor", "cosim", args.app, args.steps, seed=args.seed,
+              beats=args.beats, wait=args.wait, out=npz, driver=driver)
+    with np.load(npz) as d:
+        cycles, est, wall = d["cycles"], d["estimates"], float(d["wall_s"])
+        total = int(d["sim_cycles"])
+    ref = run_reference(app, app.scenario(args.steps, args.seed))
+    mean = cycles.mean(axis=0)
+    print(f"{args.steps} iterations of {args.app} on {params.name} (P = {params.pes}, {params.format}), "
+          f"{args.processor} processor, {args.beats} transfers, {args.wait}: every word equal to the golden model's")
+    print(f"cycles per iteration: sig_gen {mean[0]:.0f}, predict {mean[1]:.0f}, update {mean[2]:.0f}, "
+          f"transfers {mean[3]:.0f}; total {mean.sum():.0f}")
+    print(f"simulation: {total} cycles in {wall:.1f} s ({total / wall:,.0f} cycles/s)")
+    print(f"largest |x - float64 reference| over the run: {np.max(np.abs(est - ref)):.3g}")
+    print(f"files: {rtl} (runs/cosim.log{', runs/cosim.fst' if args.waves else ''})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
