@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 from .program import Program
 
-__all__ = ["Machine", "Placement", "Schedule", "schedule"]
+__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound"]
 
 
 @dataclass(frozen=True)
@@ -266,3 +266,9 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
             if npred[j] == 0:
                 heapq.heappush(heap, (-prio[j], j))
     return Schedule(prog, mc, placed)
+
+
+def chain_bound(prog: Program, mc: Machine) -> int:
+    """The dependency-chain bound of ``prog``: its length on unlimited PEs, dividers and
+    ports with ``mc``'s latencies, which no number of PEs can beat."""
+    return schedule(prog, mc.unlimited()).cycles

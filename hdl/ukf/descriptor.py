@@ -1,4 +1,4 @@
-"""The UKF IP core as kfgen's command line, manifest and ``make verilog`` see it."""
+"""The UKF IP core as kfgen's command line, manifest, ``make verilog`` and ``make bench`` see it."""
 
 from __future__ import annotations
 
@@ -99,4 +99,5 @@ CORE = CoreDescriptor(
     documents=_documents,
     waivers=_waivers,
     app=_from_app,
+    bench="kfgen.gen.bench_ukf",
 )
