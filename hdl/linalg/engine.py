@@ -7,11 +7,11 @@ cycle as :mod:`.schedule` planned them, on its banked operand memory.
                    │                 │ fire + instruction, the cycle before the start
                    │                 ▼
                    │      ProcessingElement x P  SharedUnit div / sqrt / copy
-                   │         3 read, 2 write       2|1 read, 2 write lanes
+                   │         3 read, 2 write       2|1 read, 1 write lane (2: mirrors)
                    │                 │ ▲
                    │                 ▼ │  crossbar (per bank: port 0 to the first lane,
   bus port  ───────┼──────────► BankedMemory    port 1 to the next; bus lanes last)
-                   │            2P + 2 dual-port RAM banks, constants initialised
+                   │            2P dual-port RAM banks, constants initialised
                    ▼
          busy / done / err_pivot / err_nan / flags
 """
