@@ -22,7 +22,7 @@ from kfgen.hdl.castella.descriptor import CORE
 from kfgen.hdl.castella.params import CastellaParams
 from kfgen.sim.toolchain import ToolMissing
 
-from .synth import ecp5_fmax, fmt as _fmt, write_core, xilinx_resources
+from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, seeds_text, write_core, xilinx_resources
 
 __all__ = ["simulated_rate", "tracks_for_full_rate", "table", "main"]
 
@@ -106,13 +106,12 @@ def table(rows: list[dict]) -> str:
     p = PAPER
 
     def line(label, paper, values):
-        return f"| {label} | {paper} | " + " | ".join(values) + " |"
+        return [label, paper, *values]
 
     def each(key, digits=1):
         return [_fmt(r.get(key), digits) for r in rows]
 
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    out += [
+    return md_table(head, [
         line("latency (cycles)", "-", each("latency")),
         line("initiation interval (cycles, aggregate)", "-", each("ii")),
         line("cycles between two measurements of one track", "-", each("track_interval")),
@@ -132,8 +131,7 @@ def table(rows: list[dict]) -> str:
         line("simulated rate, round-robin over all tracks (measurements/clock)", "-", each("sim_rate", 3)),
         line("  = measurements/s at Fmax", "-",
              [_fmt(r["fmax_mhz"] * 1e6 * r["sim_rate"], 0) if r.get("fmax_mhz") else "-" for r in rows]),
-    ]
-    return "\n".join(out)
+    ])
 
 
 def _parser():
@@ -182,13 +180,8 @@ def main(argv=None) -> int:
         f"Round-robin tracks the pipeline needs for one measurement per clock: {needed} "
         f"(rate by number of tracks: {sweep_text}).",
         *(f"ECP5 critical path, {r['tracks']} track(s): {r['critical_path']}." for r in rows if "critical_path" in r),
-        *(f"ECP5 Fmax by seed, {r['tracks']} track(s): "
-          + ", ".join(f"{k}: {v:.1f} MHz" for k, v in sorted(r["fmax_by_seed"].items()))
-          + (f"; nextpnr failed seed(s) {', '.join(map(str, r['failed_seeds']))}" if r["failed_seeds"] else "")
-          + "." for r in rows if "fmax_by_seed" in r),
-        f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seeds "
-        f"{' '.join(map(str, args.seeds))} (median reported). "
-        "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites).",
+        *(f"ECP5 Fmax by seed, {r['tracks']} track(s): {seeds_text(r)}." for r in rows if "fmax_by_seed" in r),
+        flow_note(args.freq, args.seeds),
         f"Work files in {out}/ ({time.monotonic() - start:.0f} s).",
     ]
     print(text + "\n".join(notes))

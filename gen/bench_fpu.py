@@ -25,7 +25,7 @@ from kfgen.sim.toolchain import ToolMissing
 
 from kfgen.hdl.arith.float.descriptor import CORE
 
-from .synth import ecp5_fmax, fmt as _fmt, write_core, xilinx_resources
+from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_resources
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
 
@@ -88,7 +88,7 @@ def table(rows: list[dict]) -> str:
     """One line per unit."""
     head = ["op", "format", "stages (latency)", "II", "Xilinx 7 LUT", "Xilinx 7 FF", "DSP48E1",
             "ECP5-85 Fmax (MHz)", "ECP5 LUT4", "ECP5 FF", "ECP5 MULT18"]
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    out = []
     for r in rows:
         util = r.get("utilization", {})
         vals = [r.get("label", r["op"]), r["format"], _fmt(r["latency"]), _fmt(r["ii"]), _fmt(r.get("lut")), _fmt(r.get("ff")),
@@ -96,19 +96,8 @@ def table(rows: list[dict]) -> str:
                 _fmt(util.get("TRELLIS_COMB")), _fmt(util.get("TRELLIS_FF")), _fmt(util.get("MULT18X18D", 0))]
         if r.get("error"):
             vals[4] = f"error: {r['error']}"
-        out.append("| " + " | ".join(vals) + " |")
-    return "\n".join(out)
-
-
-def _short_path(path: str) -> str:
-    """``start -> end: logic, routing, total`` from :func:`kfgen.gen.bench` 's critical path text."""
-    if path == "-" or " -> " not in path:
-        return path
-    steps, _, tail = path.rpartition("; routing ")
-    cells = steps.split(" -> ")
-    logic = sum(float(c.rsplit(" ", 2)[-2]) for c in cells)
-    first, last = (c.split(" (")[0].rsplit(".", 1)[0] for c in (cells[0], cells[-1]))
-    return f"{first} -> {last}, {len(cells)} cells, logic {logic:.1f} ns, routing {tail}"
+        out.append(vals)
+    return md_table(head, out)
 
 
 def _block_ram(row: dict) -> str:
@@ -122,13 +111,11 @@ def render(rows: list[dict], args, seconds: float) -> str:
     """The table and its notes, as printed and written to ``bench_fpu.md``."""
     notes = [
         "",
-        *(f"* ECP5 critical path, {r.get('label', r['op'])} {r['format']}: {_short_path(r['critical_path'])}."
+        *(f"* ECP5 critical path, {r.get('label', r['op'])} {r['format']}: {short_path(r['critical_path'])}."
           for r in rows if "critical_path" in r),
         *(f"* Block RAM, {r.get('label', r['op'])} {r['format']}: {_block_ram(r)}." for r in rows if _block_ram(r)),
-        f"* ECP5: LFE5U-85F CABGA381, nextpnr --freq {args.freq:g}, seed(s) {' '.join(map(str, args.seeds))}"
-        f"{' (median reported)' if len(args.seeds) > 1 else ''}. "
-        "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites). "
-        "Default stages of each unit; subnormals=ieee and cycles_per_op (K) 1 unless the op says otherwise.",
+        f"* {flow_note(args.freq, args.seeds)} Default stages of each unit; subnormals=ieee and "
+        "cycles_per_op (K) 1 unless the op says otherwise.",
         *(f"* {p}" for p in PUBLISHED or ["Published figures: not found in our references."]),
         f"* Work files in {args.out}/ ({seconds:.0f} s).",
     ]

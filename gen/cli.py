@@ -113,11 +113,14 @@ def _build_parser() -> argparse.ArgumentParser:
     for core in discover().values():
         params_cls = core.params
         docs, defaults = core.docs(), _defaults(params_cls)
+        values_from = ("Values come from the defaults, then --app, then --config FILE.toml (its keys are the\n"
+                       "option names without" if core.app is not None else
+                       "Values come from the defaults, then --config FILE.toml (its keys are the option names\n"
+                       "without")
         p = sub.add_parser(
             core.name, help=core.summary, description=f"{core.name}: {core.summary}.", allow_abbrev=False,
             formatter_class=argparse.RawDescriptionHelpFormatter,
-            epilog="Values come from the defaults, then --config FILE.toml (its keys are the option names\n"
-                   "without the leading dashes; - and _ are interchangeable), then the command line.\n"
+            epilog=values_from + " the leading dashes; - and _ are interchangeable), then the command line.\n"
                    "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), and for a\n"
                    "core with a register map DIR/TOP.rdl, DIR/TOP.h and DIR/TOP.md;\n"
                    "TOP is --name.")
@@ -129,6 +132,11 @@ def _build_parser() -> argparse.ArgumentParser:
                 continue
             g.add_argument(option(field), metavar="TOP" if field == "name" else field.upper(),
                            dest=field, default=None, help=_help(docs[field], defaults[field]))
+        if core.app is not None:
+            p.add_argument("--app", metavar="MODULE:CLASS",
+                           help="take the parameters an application fixes (for the ukf: n, m, nw, nv and W0 of a "
+                                "kfgen.sim.ukf.app.UkfApplication subclass) from MODULE:CLASS or FILE.py:CLASS; "
+                                "--config and the options override them")
         p.add_argument("--config", metavar="FILE.toml", help="read parameters from a TOML file")
         p.add_argument("-o", "--output", metavar="DIR", required=True,
                        help="directory to write into (created if missing)")
@@ -183,6 +191,14 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
     params_cls = core.params
     defaults = _defaults(params_cls)
     values, source = dict(defaults), {}
+    spec = getattr(args, "app", None)
+    if spec is not None:
+        try:
+            from_app = core.app(spec)
+        except ValueError as exc:
+            raise UsageError("--app", _one_line(exc)) from None
+        for k, v in from_app.items():
+            values[k], source[k] = v, f"--app {spec}"
     if args.config is not None:
         for k, v in _read_config(args.config, defaults).items():
             values[k], source[k] = v, args.config

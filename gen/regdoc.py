@@ -170,7 +170,7 @@ def c_header(node, regmap, top: str, work: Path) -> str:
     from peakrdl_cheader.exporter import CHeaderExporter
 
     path = work / f"{top}.h"
-    CHeaderExporter().export(node, str(path), std=CStandard.gnu11)
+    CHeaderExporter().export(node, str(path), std=CStandard.gnu99)  # builds with gcc -std=c99
     text = path.read_text(encoding="utf-8")
     at = text.rfind(_FOOTER)
     if at < 0:

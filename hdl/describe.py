@@ -69,6 +69,11 @@ class CoreDescriptor:
     waivers : callable
         ``params -> str``, more Verilator waivers appended to ``TOP.vlt`` (a front end's own);
         none by default.
+    app : callable or None
+        ``spec -> {field: value}``: parameter values taken from a user's application, which
+        the command line offers as ``--app SPEC`` (the UKF's ``module:Class``); raises
+        ``ValueError`` with a one-line message for a bad spec. None (the default): no
+        ``--app``.
 
     A parameter whose default is ``True`` is a switch: the command line offers
     ``--no-<name>`` to turn it off.
@@ -85,6 +90,7 @@ class CoreDescriptor:
     bench: str | None = None
     documents: Callable = lambda params: {}
     waivers: Callable = lambda params: ""
+    app: Callable | None = None
 
 
 #: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:

@@ -90,6 +90,10 @@ class WordBusSignature(wiring.Signature):
         The word at ``r_addr`` one cycle after ``r_en``.
     r_err : In(1)
         One cycle after ``r_en``: the read is refused (nothing is mapped there).
+    r_wait : In(1)
+        In the cycle of ``r_addr``: the back end cannot read there this cycle; the front end
+        holds the read (``r_en`` stays low) and offers it again the next cycle, so the R
+        channel waits. A combinational function of ``r_addr`` and the back end's state.
     w_addr : Out(addr_width)
     w_data : Out(32)
     w_strb : Out(4)
@@ -108,6 +112,7 @@ class WordBusSignature(wiring.Signature):
             "r_en": Out(1),
             "r_data": In(DATA_WIDTH),
             "r_err": In(1),
+            "r_wait": In(1),
             "w_addr": Out(addr_width),
             "w_data": Out(DATA_WIDTH),
             "w_strb": Out(DATA_WIDTH // 8),
@@ -259,7 +264,7 @@ class Axi4Slave(wiring.Component):
         m.d.comb += kept.eq(p_valid + self.s_axi_rvalid + s_valid - r_out_taken)
         issue = Signal()
         m.d.comb += [
-            issue.eq(h_valid & (kept <= 1)),
+            issue.eq(h_valid & (kept <= 1) & (h_bad | ~bus.r_wait)),
             bus.r_en.eq(issue & ~h_bad),
             bus.r_addr.eq(h_addr),
         ]

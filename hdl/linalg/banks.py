@@ -3,7 +3,7 @@ lanes."""
 
 from __future__ import annotations
 
-from amaranth.hdl import Array, Module, Mux, Signal, unsigned
+from amaranth.hdl import Array, Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -84,6 +84,10 @@ class BankedMemory(wiring.Component):
         Read latency 1: the word addressed in one cycle is on ``data`` the next. A read and a
         write of the same word in one cycle read the old word.
     wr : In(WriteLane).array(writes)
+    rd_ok : Out(1)
+        The last read lane (the bus's, lowest priority) is served this cycle: a port is free
+        for it or already reads its word. When it is not, its ``data`` next cycle is some
+        other word, and the reader retries.
     """
 
     def __init__(self, geometry, width, init, reads, writes, groups=None):
@@ -92,7 +96,8 @@ class BankedMemory(wiring.Component):
         if len(self._groups) != writes:
             raise ValueError(f"groups must name one group per write lane ({writes}), not {groups!r}")
         super().__init__({"rd": In(ReadLane(geometry, width)).array(reads),
-                          "wr": In(WriteLane(geometry, width)).array(writes)})
+                          "wr": In(WriteLane(geometry, width)).array(writes),
+                          "rd_ok": Out(1)})
 
     def elaborate(self, platform):
         m = Module()
@@ -115,6 +120,8 @@ class BankedMemory(wiring.Component):
         for (lane, w), grp in zip(order, order_group):
             if w:
                 group_data.setdefault(grp, lane.data)
+        bus_read = len(rd) - 1 + len(wr) - 1  # the bus's read lane, in ``order``
+        served = []
         for b in range(g.banks):
             words = self._init[b::g.banks]
             mem = memory.Memory(shape=unsigned(self._width), depth=g.rows,
@@ -141,6 +148,9 @@ class BankedMemory(wiring.Component):
                 wp = mem.write_port()
                 # the port's write lane (if its first hit is a write), then its group's word
                 prior = _prefix_or(m, f"{b}_w{port}", hs)
+                if port == 1:  # the bus read: served by port 0 (its word) or port 1, or not at all
+                    k = bus_read
+                    served.append(shared[k] | (hs[k] & ~prior[k]))
                 sel = {}
                 for h, pr, grp in zip(hs, prior, order_group):
                     if grp is not None:
@@ -159,6 +169,7 @@ class BankedMemory(wiring.Component):
                 if not w:
                     with m.If(h):
                         m.d.sync += selects[i][1].eq(~s)
+        m.d.comb += self.rd_ok.eq(Cat(served).any())
         # every index covered: Verilator -Wall wants complete cases
         port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - g.banks))
         for lane, (bank, port) in zip(rd, selects):

@@ -7,11 +7,11 @@ cycle as :mod:`.schedule` planned them, on its banked operand memory.
                    │                 │ fire + instruction, the cycle before the start
                    │                 ▼
                    │      ProcessingElement x P  SharedUnit div / sqrt / copy
-                   │         3 read, 2 write       2|1 read, 2 write lanes
+                   │         3 read, 2 write       2|1 read, 1 write lane (2: mirrors)
                    │                 │ ▲
                    │                 ▼ │  crossbar (per bank: port 0 to the first lane,
   bus port  ───────┼──────────► BankedMemory    port 1 to the next; bus lanes last)
-                   │            2P + 2 dual-port RAM banks, constants initialised
+                   │            2P dual-port RAM banks, constants initialised
                    ▼
          busy / done / err_pivot / err_nan / flags
 """
@@ -50,10 +50,11 @@ class Engine(wiring.Component):
     after ``done``. The error bits, and ``flags`` (the OR of every FMA, division and square
     root's IEEE flags NX UF OF DZ NV), clear at the next start and are otherwise held.
 
-    The bus port reads and writes the memory while idle, one read and one write a cycle:
-    ``mem_rdata`` holds the word at ``mem_raddr`` of the previous cycle (read latency 1; a
-    read and a write of one word in one cycle read the old word). While busy the engine's
-    lanes come first: a bus read returns an undefined word and a bus write may be lost or
+    The bus port reads and writes the memory, one read and one write a cycle: ``mem_rdata``
+    holds the word at ``mem_raddr`` of the previous cycle (read latency 1; a read and a
+    write of one word in one cycle read the old word) when ``mem_rok`` was high with it. The
+    engine's lanes come first: while busy a bus read is served only where the step leaves
+    its bank a port (``mem_rok``; else the reader retries), and a bus write may be lost or
     corrupt the step (the bus front end refuses them). Constants are in the memory from
     configuration; nothing resets the memory.
 
@@ -72,7 +73,7 @@ class Engine(wiring.Component):
     busy, done : Out(1)
     err_pivot, err_nan : Out(1)
     flags : Out(5)
-    mem_raddr : In(range(size)); mem_rdata : Out(width)
+    mem_raddr : In(range(size)); mem_rdata : Out(width); mem_rok : Out(1)
     mem_waddr : In(range(size)); mem_wdata : In(width); mem_we : In(1)
     """
 
@@ -90,7 +91,7 @@ class Engine(wiring.Component):
             "start": In(1), "step": In(range(max(2, len(steps)))), "halt": In(1),
             "busy": Out(1), "done": Out(1), "err_pivot": Out(1), "err_nan": Out(1),
             "flags": Out(5),
-            "mem_raddr": In(range(size)), "mem_rdata": Out(w),
+            "mem_raddr": In(range(size)), "mem_rdata": Out(w), "mem_rok": Out(1),
             "mem_waddr": In(range(size)), "mem_wdata": In(w), "mem_we": In(1),
         })
 
@@ -138,6 +139,7 @@ class Engine(wiring.Component):
             bus_rd.addr.bank.eq(self.mem_raddr % g.banks),
             bus_rd.addr.row.eq(self.mem_raddr // g.banks),
             self.mem_rdata.eq(bus_rd.data),
+            self.mem_rok.eq(mem.rd_ok),
             bus_wr.en.eq(self.mem_we),
             bus_wr.addr.bank.eq(self.mem_waddr % g.banks),
             bus_wr.addr.row.eq(self.mem_waddr // g.banks),

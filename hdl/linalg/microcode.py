@@ -7,7 +7,7 @@ has one stream per PE (``pe0`` ...), and one each for the divider, the square ro
 move unit. A stream holds every step, one after the other; ``bases``/``ends`` delimit them.
 
 Addresses are stored as ``(bank, row)`` with ``a = bank + banks * row``, the memory's own
-coordinates, so that no address is divided by ``banks`` (``2P + 2``, rarely a power of two)
+coordinates, so that no address is divided by ``banks`` (``2P``, often not a power of two)
 in hardware. A stride ``s`` is stored as ``(s mod banks, floor(s / banks) mod 2**row_bits)``:
 ``bank + s_bank`` wraps at most once, its carry goes into the row.
 """

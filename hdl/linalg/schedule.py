@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 from .program import Program
 
-__all__ = ["Machine", "Placement", "Schedule", "schedule"]
+__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound"]
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Machine:
     fma_latency: int
     div_latency: int
     sqrt_latency: int
-    banks: int | None = None  # None: 2 * pes + 2
+    banks: int | None = None  # None: 2 * pes (two reads a PE a cycle; the core's choice)
     ports: int = 2
     read_latency: int = 1
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
@@ -62,7 +62,7 @@ class Machine:
             if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k != "read_latency" else 0):
                 raise ValueError(f"{k} must be a positive integer, not {v!r}")
         if self.banks is None and self.pes is not None:
-            object.__setattr__(self, "banks", 2 * self.pes + 2)
+            object.__setattr__(self, "banks", 2 * self.pes)
 
     def latency(self, unit: str) -> int:
         return {"fma": self.fma_latency, "div": self.div_latency, "sqrt": self.sqrt_latency,
@@ -266,3 +266,9 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
             if npred[j] == 0:
                 heapq.heappush(heap, (-prio[j], j))
     return Schedule(prog, mc, placed)
+
+
+def chain_bound(prog: Program, mc: Machine) -> int:
+    """The dependency-chain bound of ``prog``: its length on unlimited PEs, dividers and
+    ports with ``mc``'s latencies, which no number of PEs can beat."""
+    return schedule(prog, mc.unlimited()).cycles

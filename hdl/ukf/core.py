@@ -11,10 +11,11 @@ The register and memory map (:func:`kfgen.hdl.ukf.regmap.ukf_map`) gives every o
 field position used here. Bus rules beyond the map's (documented in the map and the
 generated ``TOP.md``):
 
-- **Buffer reads while busy** answer SLVERR and read 0. The engine's schedule uses both
-  ports of every memory bank whenever it needs them, and the AXI front end's read port
-  cannot wait, so a bus read during a step would return an undefined word; the core says
-  so instead. Register reads (``STATUS`` above all) are always answered.
+- **Reads are always answered.** While busy, a buffer read waits for a cycle in which the
+  step leaves its memory bank a port (the engine's ``mem_rok``; the R channel then simply
+  stalls, as AXI allows) and returns the word as it is then: a region the step does not
+  write (``Q``, ``R``, ``z`` in ``sig_gen``, say) reads as written, one it writes reads
+  some state of the step. Register reads (``STATUS`` above all) never wait.
 - **Writes while busy**: buffer writes answer SLVERR and change nothing; the registers stay
   writable (``CTRL.reset`` stops a step, ``STATUS`` bits clear, ``IRQ_ENABLE`` changes). A
   write of ``CTRL`` with ``start`` set while busy answers SLVERR, changes nothing and sets
@@ -149,7 +150,8 @@ class Backend(wiring.Component):
 
         # ------------------------------------------------------------- reads (latency 1)
         r_buf, r_elem, r_half = buffer_at(bus.r_addr)
-        m.d.comb += eng.mem_raddr.eq(r_elem)
+        m.d.comb += [eng.mem_raddr.eq(r_elem), bus.r_wait.eq(r_buf & ~eng.mem_rok)]
+
         def pack(bits):
             """A 32-bit word of {lsb: value}."""
             word = Signal(32)
@@ -178,8 +180,8 @@ class Backend(wiring.Component):
                 for word, name in reg_words.items():
                     with m.Case(word):
                         m.d.sync += [reg_data.eq(values[name]), err.eq(0)]
-                with m.Default():  # the buffer (refused while busy) or a hole
-                    m.d.sync += [reg_data.eq(0), err.eq(~r_buf | busy | eng.start)]
+                with m.Default():  # the buffer, or a hole
+                    m.d.sync += [reg_data.eq(0), err.eq(~r_buf)]
         elem = eng.mem_rdata
         if words == 2:
             buf_data = Mux(half, elem[32:], elem[:32])

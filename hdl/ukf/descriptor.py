@@ -1,4 +1,4 @@
-"""The UKF IP core as kfgen's command line, manifest and ``make verilog`` see it."""
+"""The UKF IP core as kfgen's command line, manifest, ``make verilog`` and ``make bench`` see it."""
 
 from __future__ import annotations
 
@@ -62,10 +62,11 @@ def _extra(params, core) -> dict:
 
 
 def _documents(params) -> dict[str, str]:
+    from kfgen.gen.cdriver import ukf_driver
     from kfgen.gen.regdoc import documents
 
     from .regmap import ukf_map
-    return documents(ukf_map(params), params.name)
+    return {**documents(ukf_map(params), params.name), **ukf_driver(params.name, params.format)}
 
 
 def _waivers(params) -> str:
@@ -80,6 +81,12 @@ def _waivers(params) -> str:
     return text
 
 
+def _from_app(spec: str) -> dict:
+    # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
+    from kfgen.sim.ukf.app import load_app
+    return load_app(spec).core_parameters()
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -91,4 +98,6 @@ CORE = CoreDescriptor(
     examples=({},),
     documents=_documents,
     waivers=_waivers,
+    app=_from_app,
+    bench="kfgen.gen.bench_ukf",
 )

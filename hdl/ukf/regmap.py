@@ -42,10 +42,11 @@ two-word element (binary64) is written by its high half: writing the low half ho
 core, writing the high half then writes the element from both.
 
 While STATUS.busy: a buffer write answers SLVERR and changes nothing (a step's operands are
-never corrupted), and so does a buffer read (reading 0: the step's schedule owns both ports
-of the memory banks, and the bus cannot be made to wait); the registers stay readable and
-writable (CTRL.reset stops the step, STATUS bits clear), but a write of CTRL with start set
-answers SLVERR, changes nothing and sets STATUS.err_busy.
+never corrupted); a buffer read is answered (OKAY) once the step leaves its memory bank a
+port, the R channel waiting until then, with the word as it is at that moment (a region the
+step does not write reads as written); the registers stay readable and writable
+(CTRL.reset stops the step, STATUS bits clear), but a write of CTRL with start set answers
+SLVERR, changes nothing and sets STATUS.err_busy.
 """
 
 from __future__ import annotations
@@ -301,7 +302,8 @@ def _registers(params) -> tuple[Register, ...]:
         )),
         Register("STATUS", 0xC, 32, "What the core is doing and how the last step ended; the event bits stay "
                  "set until written 1.", (
-                     Field("busy", 0, 1, "ro", "a step is running; buffer reads and writes answer SLVERR"),
+                     Field("busy", 0, 1, "ro",
+                           "a step is running; buffer writes answer SLVERR, buffer reads wait for a free port"),
                      *(Field(name, lsb, 1, "w1c", desc) for name, lsb, desc in events),
                  )),
     ]

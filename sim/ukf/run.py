@@ -6,19 +6,25 @@ from pathlib import Path
 
 from ..verilator import Build, build, run_test
 
-__all__ = ["build_ukf_core", "run_ukf"]
+__all__ = ["build_ukf_core", "run_ukf", "build_driver", "run_cosim"]
 
 #: A generous bound on the cycles one testbench run simulates (for the build's C++ optimisation).
 RUN_CYCLES = 100_000
 
 
-def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool = False) -> Build:
+def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool | None = None) -> Build:
     """Verilate ``rtl_dir/TOP.v`` (a ``kfgen ukf`` output) into the build cache ``cache_dir``
     (default ``rtl_dir/sim_build``).
 
     A run of the testbench simulates some thousands of cycles (five iterations of steps of a
     few hundred cycles, the bus transfers between them, with backpressure), far below
-    :data:`kfgen.sim.verilator.LONG_RUN_CYCLES`, so the build takes the cheap C++ optimisation."""
+    :data:`kfgen.sim.verilator.LONG_RUN_CYCLES`, so the build takes the cheap C++ optimisation.
+    ``waves`` (default: the environment's ``KFGEN_WAVES``, so that ``KFGEN_WAVES=1 make test``
+    traces every run) builds with FST tracing: each run then leaves ``runs/<name>.fst``."""
+    import os
+
+    if waves is None:
+        waves = bool(os.environ.get("KFGEN_WAVES"))
     rtl_dir = Path(rtl_dir)
     return build([rtl_dir / f"{top}.v"], top, cache_dir or rtl_dir / "sim_build", waves=waves, cycles=RUN_CYCLES)
 
@@ -26,9 +32,108 @@ def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool = False) -> Bu
 def run_ukf(model: Build, rtl_dir, top: str, tests: list[str], name: str, env: dict | None = None) -> None:
     """Run the testbench's ``tests`` (function names) on a build, in ``rtl_dir/runs``; fails with
     the log's tail."""
-    rtl_dir = Path(rtl_dir)
+    rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
     run_dir = rtl_dir / "runs"
     run_dir.mkdir(parents=True, exist_ok=True)
     pattern = "|".join(rf"kfgen\.sim\.ukf\.tb\.{t}\b" for t in tests)
     run_test(model, "kfgen.sim.ukf.tb", run_dir, name,
              {"KFGEN_TB_MANIFEST": str(rtl_dir / f"{top}.json"), "COCOTB_TEST_FILTER": pattern, **(env or {})})
+
+
+def build_driver(rtl_dir, top: str, out_dir=None) -> Path:
+    """Compile the generated C driver ``rtl_dir/TOP_driver.c`` as a shared library with its MMIO
+    hooks (``-DKFGEN_MMIO_HOOKS``), under the flags the driver promises to build with
+    (``-std=c99 -Wall -Wextra -Werror``); the library's path."""
+    import subprocess
+
+    rtl_dir = Path(rtl_dir)
+    out = Path(out_dir or rtl_dir) / f"lib{top}_driver.so"
+    cmd = ["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-shared", "-fPIC", "-DKFGEN_MMIO_HOOKS",
+           "-I", str(rtl_dir), str(rtl_dir / f"{top}_driver.c"), "-o", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr}")
+    return out
+
+
+def run_cosim(model: Build, rtl_dir, top: str, test: str, name: str, app: str, steps: int, *, seed: int = 1,
+              beats: str = "burst", wait: str = "irq", out=None, driver=None) -> None:
+    """Run co-simulation ``test`` (``python_processor`` or ``c_processor``, :mod:`kfgen.sim.ukf.cosim`)
+    of application ``app`` (``module:Class``) for ``steps`` iterations on a build; ``out``: an
+    ``.npz`` for the estimates and cycles; ``driver``: the C driver's library (:func:`build_driver`)."""
+    rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
+    run_dir = rtl_dir / "runs"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    env = {"KFGEN_TB_MANIFEST": str(rtl_dir / f"{top}.json"), "COCOTB_TEST_FILTER": rf"kfgen\.sim\.ukf\.cosim\.{test}\b",
+           "KFGEN_APP": app, "KFGEN_STEPS": str(steps), "KFGEN_SEED": str(seed), "KFGEN_BEATS": beats,
+           "KFGEN_WAIT": wait}
+    if out:
+        env["KFGEN_COSIM_OUT"] = str(Path(out).resolve())
+    if driver:
+        env["KFGEN_DRIVER_LIB"] = str(Path(driver).resolve())
+    run_test(model, "kfgen.sim.ukf.cosim", run_dir, name, env)
+
+
+def main(argv=None) -> int:
+    """``python -m kfgen.sim.ukf.run --app MODULE:CLASS [...]``: size a core for an application,
+    generate and build it, and co-simulate the application on it (every word checked against
+    the golden model); prints the cycles of an iteration and the estimate's distance from the
+    float64 reference."""
+    import argparse
+    import sys
+
+    import numpy as np
+
+    from kfgen.gen.synth import write_core
+    from kfgen.hdl.describe import ParamError
+    from kfgen.hdl.ukf.descriptor import CORE
+    from kfgen.hdl.ukf.params import UkfParams
+
+    from .accuracy import run_reference
+    from .app import AppError, load_app
+
+    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.ukf.run", description=main.__doc__.split("\n\n")[0])
+    ap.add_argument("--app", required=True, help="the application, module:Class or path/file.py:Class")
+    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
+    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
+    ap.add_argument("--format", default="binary32", help="binary32 (default) or binary64 for the C driver")
+    ap.add_argument("--processor", choices=("python", "c"), default="python",
+                    help="the Python software side or the generated C driver (default python)")
+    ap.add_argument("--beats", choices=("burst", "single"), default="burst", help="AXI bursts or single beats")
+    ap.add_argument("--wait", choices=("irq", "poll"), default="irq", help="wait for irq or poll STATUS")
+    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
+    ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
+    args = ap.parse_args(argv)
+    try:
+        if args.steps < 1:
+            raise ValueError(f"--steps must be a positive integer, not {args.steps}")
+        app = load_app(args.app)
+        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app")
+    except (AppError, ParamError, ValueError) as exc:
+        print(f"cosim: error: {exc}", file=sys.stderr)
+        return 2
+    work = Path(args.out)
+    rtl, _ = write_core(CORE, params, work)
+    model = build_ukf_core(rtl, params.name, work / "verilator", waves=args.waves)
+    driver = build_driver(rtl, params.name) if args.processor == "c" else None
+    npz = rtl / "cosim.npz"
+    run_cosim(model, rtl, params.name, f"{args.processor}_processor", "cosim", args.app, args.steps, seed=args.seed,
+              beats=args.beats, wait=args.wait, out=npz, driver=driver)
+    with np.load(npz) as d:
+        cycles, est, wall = d["cycles"], d["estimates"], float(d["wall_s"])
+        total = int(d["sim_cycles"])
+    ref = run_reference(app, app.scenario(args.steps, args.seed))
+    mean = cycles.mean(axis=0)
+    print(f"{args.steps} iterations of {args.app} on {params.name} (P = {params.pes}, {params.format}), "
+          f"{args.processor} processor, {args.beats} transfers, {args.wait}: every word equal to the golden model's")
+    print(f"cycles per iteration: sig_gen {mean[0]:.0f}, predict {mean[1]:.0f}, update {mean[2]:.0f}, "
+          f"transfers {mean[3]:.0f}; total {mean.sum():.0f}")
+    print(f"simulation: {total} cycles in {wall:.1f} s ({total / wall:,.0f} cycles/s)")
+    print(f"largest |x - float64 reference| over the run: {np.max(np.abs(est - ref)):.3g}")
+    print(f"files: {rtl} (runs/cosim.log{', runs/cosim.fst' if args.waves else ''})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

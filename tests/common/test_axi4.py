@@ -7,7 +7,7 @@ Amaranth-simulator test checks the AXI4 rule that no output follows an input wit
 """
 
 import pytest
-from amaranth.hdl import Module, Mux, Signal, unsigned
+from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import memory, wiring
 from amaranth.lib.wiring import In
 from amaranth.sim import Simulator
@@ -27,7 +27,9 @@ class MapBackend(wiring.Component):
     """The simplest back end: memory, a read/write register, a read-only register, holes.
 
     Read latency 1 (the memory's read port, and the registers read into a register beside it);
-    byte strobes applied per byte to memory words and to the register.
+    byte strobes applied per byte to memory words and to the register. Reads of the upper half
+    of the memory wait (``r_wait``) one cycle in four, by a free-running LFSR, as a busy back
+    end's would (the lower half keeps the throughput case's one beat a clock).
     """
 
     def __init__(self):
@@ -46,6 +48,9 @@ class MapBackend(wiring.Component):
                     addr == ID // 4)
 
         r_mem, r_scratch, r_id = decode(bus.r_addr)
+        lfsr = Signal(8, init=1)
+        m.d.sync += lfsr.eq(Cat(lfsr[7] ^ lfsr[5] ^ lfsr[4] ^ lfsr[3], lfsr[:7]))
+        m.d.comb += bus.r_wait.eq(r_mem & (bus.r_addr >= MEM // 4 + MEM_WORDS // 2) & lfsr[0] & lfsr[1])
         from_mem, err, reg = Signal(), Signal(), Signal(32)
         m.d.comb += [rd.addr.eq(bus.r_addr), rd.en.eq(bus.r_en & r_mem)]
         with m.If(bus.r_en):
@@ -127,7 +132,7 @@ def test_no_input_to_output_path():
         for _ in range(400):
             for sig in ins:
                 ctx.set(sig, int(rng.integers(0, 1 << len(sig))) if len(sig) != 3 else 2)
-            for sig in (dut.bus.r_err, dut.bus.w_err):
+            for sig in (dut.bus.r_err, dut.bus.w_err, dut.bus.r_wait):
                 ctx.set(sig, int(rng.random() < 0.2))
             before = [ctx.get(o) for o in outs]
             for sig in ins:
@@ -135,6 +140,7 @@ def test_no_input_to_output_path():
                     ctx.set(sig, 1 - ctx.get(sig))
             ctx.set(dut.bus.r_err, 1 - ctx.get(dut.bus.r_err))
             ctx.set(dut.bus.w_err, 1 - ctx.get(dut.bus.w_err))
+            ctx.set(dut.bus.r_wait, 1 - ctx.get(dut.bus.r_wait))
             changed.extend(o.name for o, b in zip(outs, before) if ctx.get(o) != b)
             await ctx.tick()
 

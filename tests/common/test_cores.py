@@ -23,7 +23,7 @@ NETLISTS = {
     "fpu_mul": "4e63bc87d479266d52cb587dc406803a3dd42ba600efc6751d89ae68e2c47aee",
     "fpu_sqrt": "0c09a7a131a064d0a361ab68fea53983e4f94afcb08c97acb9994081230d7988",
     "fpu_sub": "344792bc3ff97dda64640f5e639075a0c531c82e6cee8ab02077f81bf4721fdc",
-    "ukf": "411eaf42b866b3d25d9c803af79928c2d86e0aad4ad43efe14c845b141441e41",
+    "ukf": "47e4cdc598cd6028cbd7f5d85e1fc2658b0baf36c89444126200e92a537dc581",
 }
 
 EXAMPLES = [(core, ex) for core in discover().values() for ex in core.examples]

@@ -1,0 +1,207 @@
+"""A UKF application: the user's half of the chapter's HW/SW codesign.
+
+The core computes everything that does not depend on the system (sigma points, means,
+covariances, gain); the application supplies what does: the sizes, the process model f and
+the observation model h (run in software on the processor, eqs. 1-2, 9, 12), the filter's
+parameters (W0, x0, P0, Q, R) and, for simulation, a seeded scenario. One class describes
+it; ``kfgen ukf --app module:Class`` sizes a core for it, and the float64 reference, the
+bit-exact golden model and a co-simulation run it unchanged.
+
+Write one subclass of :class:`UkfApplication`::
+
+    class Pendulum(UkfApplication):
+        n, nw, nv, m = 2, 2, 1, 1
+        dt = 0.01
+        x0 = [0.1, 0.0]
+        P0 = np.eye(2)
+        Q = np.eye(2) * 1e-4
+        R = [[1e-2]]
+
+        def f(self, x, w, u, dt):
+            return x + dt * np.array([x[1], -9.81 * np.sin(x[0])]) + w
+
+        def h(self, x, v):
+            return np.array([np.sin(x[0])]) + v
+
+        def scenario(self, steps, seed):
+            ...
+
+and load it with :func:`load_app` (``"my_module:Pendulum"``, or ``"path/to/file.py:Pendulum"``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["AppError", "Scenario", "UkfApplication", "load_app"]
+
+
+class AppError(ValueError):
+    """A bad application or application spec; the message is one line."""
+
+
+class Scenario(NamedTuple):
+    """A seeded run of ``K`` filter iterations.
+
+    Iteration k (from 0) predicts with the control input ``u[k]`` over ``dt``, then updates
+    with the measurement ``z[k]`` taken at time ``t[k]`` of the true state ``truth[k]``: the
+    filter's estimate after iteration k is to be compared with ``truth[k]``.
+    """
+
+    t: np.ndarray  #: (K,) time of each measurement, s (the first at dt)
+    truth: np.ndarray  #: (K, n) the true states
+    u: np.ndarray  #: (K, p) control inputs passed to f (p = 0: none)
+    z: np.ndarray  #: (K, m) measurements
+
+
+class UkfApplication:
+    """Base class of a UKF application.
+
+    Attributes
+    ----------
+    n, nw, nv, m : int
+        Lengths of the state x, the process noise w, the measurement noise v and the
+        observation z (M = n + nw + nv is the augmented state's length, eq. 3).
+    W0 : float
+        Weight of the centre sigma point, 0 <= W0 < 1 (eq. 5); 0 by default.
+    dt : float
+        Time between iterations, s, passed to :meth:`f`.
+    x0, P0 : array_like
+        Initial estimate (n,) and its covariance (n, n).
+    Q, R : array_like
+        Covariances of w (nw, nw) and of v (nv, nv) (eq. 4).
+
+    Subclasses set these (as class attributes or in ``__init__``, which takes no
+    arguments when the class is loaded by :func:`load_app`) and define :meth:`f`,
+    :meth:`h` and :meth:`scenario`.
+    """
+
+    n: int
+    nw: int
+    nv: int
+    m: int
+    W0: float = 0.0
+    dt: float
+    x0 = P0 = Q = R = None
+
+    def f(self, x: np.ndarray, w: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
+        """Process model: the state (n,) one step of ``dt`` after ``x`` (n,), with the
+        process noise ``w`` (nw,) and the control input ``u`` (eq. 1)."""
+        raise NotImplementedError
+
+    def h(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Observation model: the observation (m,) of the state ``x`` (n,) with the
+        measurement noise ``v`` (nv,) (eq. 2)."""
+        raise NotImplementedError
+
+    def scenario(self, steps: int, seed: int) -> Scenario:
+        """A simulated run of ``steps`` iterations, reproducible from ``seed``."""
+        raise NotImplementedError
+
+    def core_parameters(self) -> dict:
+        """The UKF core's parameters (:class:`kfgen.hdl.ukf.params.UkfParams` fields) this
+        application fixes: its sizes and W0."""
+        return {"states": int(self.n), "observations": int(self.m), "process_noise": int(self.nw),
+                "measurement_noise": int(self.nv), "w0": float(self.W0)}
+
+    def check(self) -> None:
+        """Validate the sizes, W0, dt and the shapes of x0, P0, Q, R.
+
+        Raises
+        ------
+        AppError
+            Naming the first attribute that is wrong and what it should be.
+        """
+        name = type(self).__name__
+        for key in ("n", "nw", "nv", "m"):
+            v = getattr(self, key, None)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise AppError(f"{name}.{key} must be a positive integer, not {v!r}")
+        w0 = self.W0
+        if isinstance(w0, bool) or not isinstance(w0, (int, float)) or not 0 <= w0 < 1:
+            raise AppError(f"{name}.W0 must be a number with 0 <= W0 < 1, not {w0!r}")
+        dt = getattr(self, "dt", None)
+        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (math.isfinite(dt) and dt > 0):
+            raise AppError(f"{name}.dt must be a positive number of seconds, not {dt!r}")
+        for key, shape in (("x0", (self.n,)), ("P0", (self.n, self.n)), ("Q", (self.nw, self.nw)),
+                           ("R", (self.nv, self.nv))):
+            try:
+                a = np.asarray(getattr(self, key), dtype=np.float64)
+            except (TypeError, ValueError):
+                a = None
+            if a is None or a.shape != shape or not np.all(np.isfinite(a)):
+                got = "None" if a is None or getattr(self, key) is None else f"shape {a.shape}"
+                raise AppError(f"{name}.{key} must be a finite array of shape {shape}, not {got}")
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def _import(module: str):
+    """Import ``module`` (a dotted name, found from the current directory too, or a .py file)."""
+    if module.endswith(".py"):
+        path = Path(module)
+        if not path.is_file():
+            raise AppError(f"no such file {module!r}")
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+    # A console script's sys.path starts at its own directory, not the user's.
+    sys.path.insert(0, str(Path.cwd()))
+    try:
+        return importlib.import_module(module)
+    finally:
+        sys.path.remove(str(Path.cwd()))
+
+
+def load_app(spec: str) -> UkfApplication:
+    """The application ``spec`` names, instantiated with no arguments and checked.
+
+    Parameters
+    ----------
+    spec : str
+        ``"module:Class"`` (a dotted module name, importable or found from the current
+        directory) or ``"path/to/file.py:Class"``; ``Class`` is a subclass of
+        :class:`UkfApplication` (or anything callable with no arguments that returns an
+        instance of one).
+
+    Raises
+    ------
+    AppError
+        With a one-line message: a spec not of that form, a module that does not import, a
+        missing class, an instance that is not a :class:`UkfApplication` or does not pass
+        :meth:`UkfApplication.check`.
+    """
+    if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        raise AppError(f"must be module:Class (or file.py:Class), not {spec!r}")
+    module, attr = spec.split(":")
+    if not attr.isidentifier():
+        raise AppError(f"{attr!r} in {spec!r} is not a class name")
+    try:
+        mod = _import(module)
+    except AppError:
+        raise
+    except Exception as exc:  # the user's module: whatever it raises, one line
+        raise AppError(f"cannot import {module!r}: {type(exc).__name__}: {_one_line(exc)}") from None
+    cls = getattr(mod, attr, None)
+    if cls is None:
+        raise AppError(f"module {module!r} has no {attr!r}")
+    if not callable(cls):
+        raise AppError(f"{spec} is a {type(cls).__name__}, not a UkfApplication class")
+    try:
+        app = cls()
+    except Exception as exc:
+        raise AppError(f"{spec}() failed: {type(exc).__name__}: {_one_line(exc)}") from None
+    if not isinstance(app, UkfApplication):
+        raise AppError(f"{spec}() is a {type(app).__name__}, not a UkfApplication (kfgen.sim.ukf.app)")
+    app.check()
+    return app

