@@ -19,6 +19,8 @@ def _docs() -> dict[str, Doc]:
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
                         "their area; sig_gen takes longer) or pipelined (one operation a cycle); by default "
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
+        "banks": Doc("dual-port banks of the operand memory: more banks, fewer port conflicts and a larger "
+                     "crossbar; by default 2P up to P = 2, P above", "", "an integer in 2..2M"),
         "format": Doc("float format of every buffer word and of the arithmetic", "",
                       f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
                       "(any case)"),

@@ -51,6 +51,11 @@ class UkfParams:
         shorter sig_gen). Replaced by its lowercase name; ``None`` by ``iterative`` at P = 1,
         where they are a third of the core, and ``pipelined`` above, where sig_gen's length
         matters more than their area.
+    banks : int or None
+        Dual-port memory banks of the engine's operand memory, 2..2M: more banks mean fewer
+        port conflicts (fewer cycles) and a larger crossbar (its area grows with banks times
+        lanes). ``None``: 2P up to P = 2, P above (at P = 10, 10 banks take 1 % more cycles
+        than 20 and about half the crossbar).
     format : str
         Float format of every buffer word: ``binary16``, ``bfloat16``, ``binary32``,
         ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
@@ -77,6 +82,7 @@ class UkfParams:
     measurement_noise: int = 6
     pes: int = 1
     div_sqrt: str | None = None
+    banks: int | None = None
     format: str = "binary32"
     w0: float = 0.0
     irq: bool = True
@@ -97,6 +103,12 @@ class UkfParams:
         if kind not in DIV_SQRT:
             raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {self.div_sqrt!r}")
         object.__setattr__(self, "div_sqrt", kind)
+        banks = self.banks
+        if banks is None:
+            banks = 2 * self.pes if self.pes <= 2 else self.pes
+        elif isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * M:
+            raise ParamError("banks", f"must be an integer in 2..2M = {2 * M}, not {banks!r}")
+        object.__setattr__(self, "banks", banks)
         try:
             fmt = FloatFormat.parse(self.format)
         except ValueError as exc:

@@ -22,13 +22,14 @@ def programs(params) -> UkfPrograms:
 
 
 def machine(params) -> Machine:
-    """P processing elements (the FMA's default pipeline), 2P memory banks, and the divider and
-    square root of ``params.div_sqrt``: iterative (one result bit a cycle: an operation every
-    :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or pipelined."""
+    """P processing elements (the FMA's default pipeline), ``params.banks`` memory banks, and
+    the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle: an
+    operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
+    pipelined."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
     div, sqrt = (cls(fmt, cycles_per_op=per_op[cls]) for cls in (FloatDiv, FloatSqrt))
-    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=2 * params.pes,
+    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval)
 
 
