@@ -1,3 +1,5 @@
+# amaranth: UnusedElaboratable=no
+# (The manifest test builds cores only to read their ports and latencies.)
 """`kfgen schur`: bad values (exit 2, one line naming the option and the unit's range), the
 parameters as built, and the manifest (ports, fields, latency, initiation interval)."""
 

@@ -15,12 +15,13 @@ import os
 import numpy as np
 import pytest
 
+from kfgen.gen.cli import main
 from kfgen.hdl.schur.params import SchurParams
 from kfgen.sim.schur.model import stimulus
 from kfgen.sim.schur.run import run_schur_group
 from kfgen.sim.toolchain import lint
 
-from conftest import VERILATOR_CACHE, kfgen
+from conftest import VERILATOR_CACHE
 
 pytestmark = pytest.mark.verilator
 
@@ -43,8 +44,10 @@ GROUPS = {
 
 
 def _generate(build_root, top):
+    """``kfgen schur OPTIONS --name TOP -o DIR``, in this process (the command line's own
+    tests run it as a command)."""
     out = build_root / "schur" / top
-    kfgen("schur", *CONFIGS[top][0], "--name", top, "-o", out)
+    assert main(["schur", *map(str, CONFIGS[top][0]), "--name", top, "-o", str(out)]) == 0
     return out, json.loads((out / f"{top}.json").read_text())
 
 
