@@ -1,4 +1,3 @@
-# amaranth: UnusedElaboratable=no
 """The Schur-complement core in Amaranth's simulator, in a 6-bit format (e3m2) where it is small
 enough to simulate in a second: every result against the golden model, the handshakes, the
 latency and the initiation interval of an iterative divider (Verilator runs the real formats,
@@ -10,6 +9,7 @@ from amaranth.sim import Simulator
 
 from kfgen.hdl.schur.core import Schur
 from kfgen.hdl.schur.params import SchurParams
+from kfgen.sim.schur.model import stimulus
 from kfgen.sim.schur.run import expected
 
 
@@ -20,7 +20,9 @@ def test_core_streams_in_amaranth_simulator(kw):
     dut = Schur(p)
     rng = np.random.default_rng(4)
     n, calm = 120, 12
-    matrices = [[int(w) for w in rng.integers(0, 1 << 6, 3)] for _ in range(n)]
+    # the status cases (zero and negative pivots, NaNs, infinities), then positive-definite,
+    # symmetric and random words
+    matrices = stimulus(p.fmt, 2, n, rng)
     tdata, want_data, want_user = expected(p, matrices)
     got, in_cycle, out_cycle = [], [], []
 
@@ -50,6 +52,8 @@ def test_core_streams_in_amaranth_simulator(kw):
     sim.add_testbench(bench)
     sim.run()
     assert got == list(zip(want_data, want_user))
+    # d = 2: the input register, two divisions, two multiplies and two adds, the FIFO's two cycles
+    assert dut.latency == 1 + 2 * (p.div_latency + p.mul_latency + p.add_latency) + 2
     assert [o - i for i, o in zip(in_cycle[:calm], out_cycle[:calm])] == [dut.latency] * calm
     assert set(np.diff(in_cycle[:calm])) == {dut.initiation_interval}
     assert min(np.diff(in_cycle)) == dut.initiation_interval

@@ -106,6 +106,7 @@ def test_status_words():
         words[k] = nan
         res, st = golden(prog, fmt, words)
         assert st.nan and st.pivot and all(fmt.is_nan(w) for w in res), k
+        assert not st.flags & FLAG_NV, k
     _, st = golden(prog, fmt, [one, fmt.canonical_nan ^ fmt.quiet_bit | 1, one])  # signalling NaN
     assert st.nan and st.flags & FLAG_NV
     # a zero pivot divides by zero: pivot and DZ
