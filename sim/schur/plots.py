@@ -31,15 +31,18 @@ def tradeoff(records: list[dict], path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
-    ours = [r for r in records if r.get("fmax_mhz")]
+    # A point without Fmax (place and route not run, or failed) is still drawn in the area panel.
+    ours = [r for r in records if r.get("lut")]
     slides = [r["point"] for r in records if r["point"].get("fmax")]
     for r in ours:
         row = r["point"].get("fmax") is not None
         style = dict(color="tab:blue", marker="o" if row else "^", ms=7 if row else 6, ls="none")
         label = f"{r['point']['label']}: {r['params']['mul_latency']}/{r['params']['add_latency']}/" \
                 f"{r['params']['div_cycles_per_op']}/{r['params']['div_latency']}"
-        top.plot(r["latency"], r["fmax_mhz"], **style)
-        top.annotate(label, (r["latency"], r["fmax_mhz"]), fontsize=7, xytext=(4, 3), textcoords="offset points")
+        if r.get("fmax_mhz"):
+            top.plot(r["latency"], r["fmax_mhz"], **style)
+            top.annotate(label, (r["latency"], r["fmax_mhz"]), fontsize=7, xytext=(4, 3),
+                         textcoords="offset points")
         bottom.plot(r["latency"], r["lut"], color="tab:blue", marker=style["marker"], ls="none")
         bottom.plot(r["latency"], r["ff"], color="tab:green", marker=style["marker"], ls="none")
         bottom.annotate(r["point"]["label"], (r["latency"], r["lut"]), fontsize=7, xytext=(4, 3),
@@ -56,7 +59,7 @@ def tradeoff(records: list[dict], path) -> None:
         plt.Line2D([], [], color="tab:blue", marker="^", ls="none", label="ours, the sweep"),
         plt.Line2D([], [], color="tab:red", marker="s", ls="none", label="slides, Virtex-II"),
     ]
-    top.legend(handles=handles, fontsize=8, loc="lower right")
+    top.legend(handles=handles, fontsize=8, loc="center left")
     top.set_ylabel("Fmax (MHz)")
     top.set_title("d = 2, binary32: mul / add / divider cycles per op / divider latency", fontsize=9, loc="left")
     top.grid(True, alpha=0.3)
@@ -65,7 +68,7 @@ def tradeoff(records: list[dict], path) -> None:
         plt.Line2D([], [], color="tab:green", marker="o", ls="none", label="ours, Xilinx 7 FF"),
         plt.Line2D([], [], color="tab:red", marker="s", ls="none", label="slides, Virtex-II 4-input LUT"),
         plt.Line2D([], [], color="tab:orange", marker="s", ls="none", label="slides, Virtex-II FF"),
-    ], fontsize=8, loc="upper left")
+    ], fontsize=8, loc="center right")
     bottom.set_yscale("log")
     bottom.set_ylabel("area (cells)")
     bottom.set_xlabel("latency (cycles, input handshake to result); slides at 2 (Ld + Lm + La) + 3")
