@@ -34,19 +34,25 @@ def tradeoff(records: list[dict], path) -> None:
     # A point without Fmax (place and route not run, or failed) is still drawn in the area panel.
     ours = [r for r in records if r.get("lut")]
     slides = [r["point"] for r in records if r["point"].get("fmax")]
-    for r in ours:
+    placed = []  # (latency, Fmax) of the points already labelled, to keep labels apart
+    for k, r in enumerate(ours):
         row = r["point"].get("fmax") is not None
         style = dict(color="tab:blue", marker="o" if row else "^", ms=7 if row else 6, ls="none")
         label = f"{r['point']['label']}: {r['params']['mul_latency']}/{r['params']['add_latency']}/" \
                 f"{r['params']['div_cycles_per_op']}/{r['params']['div_latency']}"
+        x = r["latency"]
         if r.get("fmax_mhz"):
-            top.plot(r["latency"], r["fmax_mhz"], **style)
-            top.annotate(label, (r["latency"], r["fmax_mhz"]), fontsize=7, xytext=(4, 3),
+            near = any(0 <= x - px <= 12 and abs(r["fmax_mhz"] - py) <= 4 for px, py in placed)  # a label's width
+            top.plot(x, r["fmax_mhz"], **style)
+            top.annotate(label, (x, r["fmax_mhz"]), fontsize=7, xytext=(4, -10 if near else 3),
                          textcoords="offset points")
-        bottom.plot(r["latency"], r["lut"], color="tab:blue", marker=style["marker"], ls="none")
-        bottom.plot(r["latency"], r["ff"], color="tab:green", marker=style["marker"], ls="none")
-        bottom.annotate(r["point"]["label"], (r["latency"], r["lut"]), fontsize=7, xytext=(4, 3),
-                        textcoords="offset points")
+            placed.append((x, r["fmax_mhz"]))
+        bottom.plot(x, r["lut"], color="tab:blue", marker=style["marker"], ls="none")
+        bottom.plot(x, r["ff"], color="tab:green", marker=style["marker"], ls="none")
+        # upright labels above the LUT points, side by side where two share a latency
+        beside = sum(q["latency"] == x for q in ours[:k])
+        bottom.annotate(r["point"]["label"], (x, r["lut"]), fontsize=7, xytext=(8 * beside, 6),
+                        textcoords="offset points", rotation=90, ha="center", va="bottom")
     for p in slides:
         x = slides_latency(p)
         top.plot(x, p["fmax"], color="tab:red", marker="s", ls="none")
@@ -68,8 +74,10 @@ def tradeoff(records: list[dict], path) -> None:
         plt.Line2D([], [], color="tab:green", marker="o", ls="none", label="ours, Xilinx 7 FF"),
         plt.Line2D([], [], color="tab:red", marker="s", ls="none", label="slides, Virtex-II 4-input LUT"),
         plt.Line2D([], [], color="tab:orange", marker="s", ls="none", label="slides, Virtex-II FF"),
-    ], fontsize=8, loc="center right")
+    ], fontsize=8, loc="lower right", ncol=2)
     bottom.set_yscale("log")
+    bottom.set_ylim(top=3 * max(r["lut"] for r in ours))
+    top.set_xlim(right=max(r["latency"] for r in ours) + 12)  # room for the labels (shared x)
     bottom.set_ylabel("area (cells)")
     bottom.set_xlabel("latency (cycles, input handshake to result); slides at 2 (Ld + Lm + La) + 3")
     bottom.grid(True, which="both", alpha=0.3)
