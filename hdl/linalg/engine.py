@@ -118,7 +118,8 @@ class Engine(wiring.Component):
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
             else:
-                stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "copy": None}[img.unit]
+                stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "exp": mc.exp_latency,
+                          "copy": None, "max": None}[img.unit]
                 unit = SharedUnit(img.unit, fmt, g, layout, stages=stages,
                                   cycles_per_op=mc.interval(img.unit))
             m.submodules[name] = ResetInserter(self.halt)(unit)  # no write in flight

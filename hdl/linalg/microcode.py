@@ -4,7 +4,8 @@ stream per issuing unit and with every address split into (bank, row).
 Pure Python (no Amaranth import). A unit issues at most once a cycle, so each stream's
 instructions start on distinct cycles and one ROM read a cycle keeps up with it: the engine
 has one stream per PE (``pe0`` ...), and one each for the divider, the square root and the
-move unit. A stream holds every step, one after the other; ``bases``/``ends`` delimit them.
+move unit, and for the exponential and the comparator when a step uses them. A stream holds
+every step, one after the other; ``bases``/``ends`` delimit them.
 
 Addresses are stored as ``(bank, row)`` with ``a = bank + banks * row``, the memory's own
 coordinates, so that no address is divided by ``banks`` (``2P``, often not a power of two)
@@ -108,7 +109,8 @@ def compile_steps(scheds: list[Schedule]) -> Microcode:
     if mc.read_latency != 1:
         raise ValueError(f"the engine's memory has read latency 1, not {mc.read_latency}")
     g = Geometry(layout.size, mc.banks)
-    names = [f"pe{p}" for p in range(mc.pes)] + ["div", "sqrt", "copy"]
+    extra = [u for u in ("exp", "max") if any(u in s.program.units for s in scheds)]
+    names = [f"pe{p}" for p in range(mc.pes)] + ["div", "sqrt", "copy"] + extra
     streams = {k: StreamImage("fma" if k.startswith("pe") else k, [], [], []) for k in names}
     deltas, counts = [0], [1]
     for s in scheds:

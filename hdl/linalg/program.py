@@ -9,7 +9,10 @@ Pure Python (no Amaranth import). An operation is one of
   every ``x``, zeros included). Negating a product costs nothing in hardware (a sign bit).
 * :class:`Div` ``a / b`` and :class:`Sqrt` ``sqrt(a)``, on the one shared divider and
   square root;
-* :class:`Copy` ``dst = src``, the word unchanged, on the memory's move unit (no PE).
+* :class:`Copy` ``dst = src``, the word unchanged, on the memory's move unit (no PE);
+* :class:`Exp` ``exp(a)`` on a shared pipelined exponential (the IMM's likelihoods), and
+  :class:`Max` ``max(a, b)`` on a comparator (latency 0, like the move unit). An engine has
+  these units only when one of its programs uses them.
 
 The program's order is its meaning: an operation reads what earlier operations wrote (the
 scheduler keeps read-after-write, write-after-read and write-after-write order). ``check``
@@ -21,9 +24,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Program", "CHECKS"]
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "CHECKS", "UNITS"]
 
 CHECKS = (None, "pivot", "finite")
+
+#: The executing units, in the program store's order.
+UNITS = ("fma", "div", "sqrt", "copy", "exp", "max")
 
 
 @dataclass(frozen=True)
@@ -201,6 +207,53 @@ class Copy:
         return "copy"
 
 
+@dataclass(frozen=True)
+class Exp:
+    """``dst = exp(a)`` on the shared exponential (faithfully rounded, :class:`FloatExp`)."""
+
+    dst: tuple[int, ...]
+    a: int
+    check: str | None = None
+
+    def __init__(self, dst, a, check=None):
+        object.__setattr__(self, "dst", _dst(dst))
+        object.__setattr__(self, "a", _addr(a, "a"))
+        object.__setattr__(self, "check", _check(check))
+
+    @property
+    def reads(self):
+        return (self.a,)
+
+    @property
+    def unit(self) -> str:
+        return "exp"
+
+
+@dataclass(frozen=True)
+class Max:
+    """``dst = max(a, b)``, exact: the larger value (``+0`` above ``-0``), ``a`` when they are
+    equal, the canonical NaN when either is a NaN."""
+
+    dst: tuple[int, ...]
+    a: int
+    b: int
+    check: str | None = None
+
+    def __init__(self, dst, a, b, check=None):
+        object.__setattr__(self, "dst", _dst(dst))
+        object.__setattr__(self, "a", _addr(a, "a"))
+        object.__setattr__(self, "b", _addr(b, "b"))
+        object.__setattr__(self, "check", _check(check))
+
+    @property
+    def reads(self):
+        return (self.a, self.b)
+
+    @property
+    def unit(self) -> str:
+        return "max"
+
+
 @dataclass
 class Program:
     """One step: its operations in program order, on ``layout``'s memory, in format ``fmt``."""
@@ -224,6 +277,11 @@ class Program:
     def fma_count(self) -> int:
         """Multiply-adds."""
         return sum(len(op.terms) for op in self.ops if isinstance(op, Dot))
+
+    @property
+    def units(self) -> set:
+        """The units this program issues to."""
+        return {op.unit for op in self.ops}
 
     def count(self, unit: str) -> int:
         return sum(1 for op in self.ops if op.unit == unit)

@@ -51,13 +51,14 @@ class Machine:
     read_latency: int = 1
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
+    exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
 
     def __post_init__(self):
         if self.pes is not None and (isinstance(self.pes, bool) or not isinstance(self.pes, int)
                                      or self.pes < 1):
             raise ValueError(f"pes must be a positive integer or None, not {self.pes!r}")
         for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports", "div_interval",
-                  "sqrt_interval"):
+                  "sqrt_interval", "exp_latency"):
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k != "read_latency" else 0):
                 raise ValueError(f"{k} must be a positive integer, not {v!r}")
@@ -66,7 +67,7 @@ class Machine:
 
     def latency(self, unit: str) -> int:
         return {"fma": self.fma_latency, "div": self.div_latency, "sqrt": self.sqrt_latency,
-                "copy": 0}[unit]
+                "copy": 0, "exp": self.exp_latency, "max": 0}[unit]
 
     def interval(self, unit: str) -> int:
         """Cycles from one issue to the next on ``unit`` (1: pipelined)."""
@@ -75,7 +76,7 @@ class Machine:
     def unlimited(self) -> Machine:
         """Unlimited PEs, banks and ports, and a divider and square root per operation."""
         return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
-                       None, self.ports, self.read_latency)
+                       None, self.ports, self.read_latency, exp_latency=self.exp_latency)
 
 
 @dataclass(frozen=True)

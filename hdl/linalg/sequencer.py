@@ -22,7 +22,7 @@ def instruction_layout(unit: str, geometry, widths, mirror: bool = True) -> data
     if unit == "fma":
         fields.update({"count": unsigned(widths["count"]), "sa": addr, "sb": addr, "neg": 1,
                        "first": 1, "init_en": 1, "init": addr, "last": 1})
-    if unit in ("sqrt", "copy"):
+    if unit in ("sqrt", "copy", "exp"):
         del fields["b"]
     return data.StructLayout(fields)
 

@@ -6,7 +6,7 @@ cycle given as a delta from the previous instruction's start. An FMA segment nam
 two address generators, ``a_k = a0 + k sa`` and ``b_k = b0 + k sb``, issued every ``Lf``
 cycles for ``count`` terms; the first segment of an accumulation is marked ``first`` (its
 addend is ``init``, or ``-0`` without one, instead of the PE's feedback) and carries
-``init``, the last its destination(s) and check. A division, square root or copy is one instruction. The
+``init``, the last its destination(s) and check. A division, square root, copy, exponential or maximum is one instruction. The
 sequencer keeps one segment generator per PE interleave slot (``Lf`` per PE).
 
 Field widths are the fewest bits that hold every value of the program set (the three UKF
@@ -17,12 +17,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .program import Dot
+from .program import UNITS, Dot
 from .schedule import Schedule
 
 __all__ = ["Instruction", "encode", "StoreSize", "store_size"]
 
-UNITS = ("fma", "div", "sqrt", "copy")
 CHECK_CODES = {None: 0, "pivot": 1, "finite": 2}
 
 
@@ -110,7 +109,7 @@ def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
     pes = max(s.machine.pes or 1 for s in scheds)
     A = _bits(memory_words - 1)
     f = {
-        "unit": 2,
+        "unit": _bits(len(UNITS) - 1) if any(i.unit in ("exp", "max") for i in allins) else 2,
         "pe": _bits(pes - 1),
         "delta": _bits(max(deltas)),
         "count": _bits(max(i.count for i in allins)),

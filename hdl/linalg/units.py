@@ -14,6 +14,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from kfgen.hdl.arith.float.div import FloatDiv
+from kfgen.hdl.arith.float.exp import FloatExp
 from kfgen.hdl.arith.float.fma import FloatFMA
 from kfgen.hdl.arith.float.sqrt import FloatSqrt
 
@@ -199,14 +200,33 @@ class ProcessingElement(_Unit):
         return m
 
 
+def max_word(fmt, a, b):
+    """``max(a, b)`` of two ``fmt`` words as :class:`~.program.Max` defines it (the larger
+    value, ``+0`` above ``-0``, ``a`` when equal, the canonical NaN for a NaN operand), and
+    whether an operand was a NaN: sign-magnitude words compared as integers whose negative
+    half is reversed."""
+    w, f = fmt.width, fmt.frac_bits
+
+    def key(x):  # monotonic in the value: negatives' magnitudes inverted, positives above
+        return Mux(x[w - 1], ~x, x | Const(fmt.sign_mask, w))
+
+    def isnan(x):
+        return (x[f:w - 1] == (1 << fmt.exp_bits) - 1) & (x[:f] != 0)
+
+    nan = isnan(a) | isnan(b)
+    y = Mux(nan, fmt.canonical_nan, Mux(key(b)[:w] > key(a)[:w], b, a))
+    return y, nan
+
+
 class SharedUnit(_Unit):
-    """The divider (``a / b``), the square root (``sqrt(a)``) or the move unit (``a``): one
-    issue every ``cycles_per_op`` cycles, operands read at the start ``t``, the result
-    written at ``t + 1 + L`` (``L = 0`` for a move).
+    """The divider (``a / b``), the square root (``sqrt(a)``), the exponential (``exp(a)``),
+    the move unit (``a``) or the comparator (``max(a, b)``): one issue every
+    ``cycles_per_op`` cycles, operands read at the start ``t``, the result written at
+    ``t + 1 + L`` (``L = 0`` for a move and a maximum).
 
     Parameters
     ----------
-    kind : "div", "sqrt" or "copy"
+    kind : "div", "sqrt", "exp", "copy" or "max"
     fmt, geometry, layout, stages
         As :class:`ProcessingElement`; ``stages`` the unit's latency (``None``: its default).
     cycles_per_op : int
@@ -215,15 +235,15 @@ class SharedUnit(_Unit):
 
     Members
     -------
-    As :class:`ProcessingElement`, with ``rd`` of two lanes (``a``, ``b``) for the divider, one
-    otherwise.
+    As :class:`ProcessingElement`, with ``rd`` of two lanes (``a``, ``b``) for the divider and
+    the comparator, one otherwise.
     """
 
     def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1):
-        if kind not in ("div", "sqrt", "copy"):
-            raise ValueError(f"kind must be div, sqrt or copy, not {kind!r}")
+        if kind not in ("div", "sqrt", "exp", "copy", "max"):
+            raise ValueError(f"kind must be div, sqrt, exp, copy or max, not {kind!r}")
         self._kind, self._stages, self._per_op = kind, stages, cycles_per_op
-        super().__init__(fmt, geometry, layout, 2 if kind == "div" else 1)
+        super().__init__(fmt, geometry, layout, 2 if kind in ("div", "max") else 1)
 
     def elaborate(self, platform):
         m = Module()
@@ -242,8 +262,17 @@ class SharedUnit(_Unit):
         if self._kind == "copy":
             self._write(m, wb, self.rd[0].data)
             return m
-        cls = FloatDiv if self._kind == "div" else FloatSqrt
-        m.submodules.unit = unit = cls(fmt, stages=self._stages, cycles_per_op=self._per_op)
+        if self._kind == "max":
+            y, nan = max_word(fmt, self.rd[0].data, self.rd[1].data)
+            self._write(m, wb, y)
+            m.d.comb += self.flags.eq(Mux(wb.en & nan, 0b10000, 0))  # NV, as a comparison
+            return m
+        if self._kind == "exp":
+            unit = FloatExp(fmt, stages=self._stages)
+        else:
+            cls = FloatDiv if self._kind == "div" else FloatSqrt
+            unit = cls(fmt, stages=self._stages, cycles_per_op=self._per_op)
+        m.submodules.unit = unit
         m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(self.rd[0].data)]
         if self._kind == "div":
             m.d.comb += unit.i_b.eq(self.rd[1].data)

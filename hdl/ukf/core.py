@@ -44,7 +44,7 @@ from ..linalg.engine import Engine
 from .regmap import BUS_ID_WIDTH, ukf_map
 from .steps import programs, schedules
 
-__all__ = ["Ukf", "Backend"]
+__all__ = ["Ukf", "EngineCore", "Backend"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
 
@@ -56,8 +56,13 @@ class Backend(wiring.Component):
     Parameters
     ----------
     params : UkfParams
+        Or any core's parameters with ``fmt`` and ``irq`` (the IMM's).
     engine : Engine
         The engine of ``params``' step programs (its memory is the buffer, from word 0).
+    rmap : RegisterMap or None
+        The core's map (``None``: the UKF's, :func:`ukf_map`). ``CTRL.step`` names the
+        engine's steps in order; without that field the engine has one step. Every ``ro``
+        memory answers writes with SLVERR.
 
     Members
     -------
@@ -66,11 +71,15 @@ class Backend(wiring.Component):
         ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
     """
 
-    def __init__(self, params, engine: Engine):
+    def __init__(self, params, engine: Engine, rmap=None):
         self._params, self._engine = params, engine
-        self._map = ukf_map(params)
-        if engine.step_names != tuple(v.name for v in self._map["CTRL"].field("step").values):
-            raise ValueError("CTRL.step's values must name the engine's steps in its order")
+        self._map = ukf_map(params) if rmap is None else rmap
+        ctrl = self._map["CTRL"]
+        if any(f.name == "step" for f in ctrl.fields):
+            if engine.step_names != tuple(v.name for v in ctrl.field("step").values):
+                raise ValueError("CTRL.step's values must name the engine's steps in its order")
+        elif len(engine.step_names) != 1:
+            raise ValueError("an engine of several steps needs a CTRL.step field")
         super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2)), "irq": Out(1)})
 
     def elaborate(self, platform):
@@ -81,12 +90,12 @@ class Backend(wiring.Component):
         base = rmap.buffer_base // 4  # buffer's first bus word; a power of two
         kb = base.bit_length() - 1
         elements = sum(mem.elements for mem in rmap.memories)
-        sp = rmap["sigma_points"]
-        sp_lo = (sp.offset - rmap.buffer_base) // sp.element_size
-        sp_hi = sp_lo + sp.elements
+        read_only = [((mem.offset - rmap.buffer_base) // mem.element_size, mem.elements)
+                     for mem in rmap.memories if mem.access == "ro"]  # (first element, elements)
         regs = {r.name: r.offset // 4 for r in rmap.registers}
         ctrl, status = rmap["CTRL"], rmap["STATUS"]
-        f_start, f_reset, f_step = (ctrl.field(k) for k in ("start", "reset", "step"))
+        f_start, f_reset = ctrl.field("start"), ctrl.field("reset")
+        f_step = ctrl.field("step") if any(f.name == "step" for f in ctrl.fields) else None
         f_busy = status.field("busy")
         lsb = {e: status.field(e).lsb for e in _EVENTS}
 
@@ -98,7 +107,7 @@ class Backend(wiring.Component):
             return inside & (element < elements), element, index[0] if words == 2 else 0
 
         # ------------------------------------------------------------- state
-        step = Signal(f_step.width)
+        step = Signal(f_step.width if f_step else 1)
         sticky = {e: Signal(name=f"status_{e}") for e in _EVENTS}
         enable = {e: Signal(name=f"irq_enable_{e}") for e in _EVENTS}
         busy = eng.busy
@@ -111,9 +120,12 @@ class Backend(wiring.Component):
         do_reset = byte0 & is_reg["CTRL"] & wd[f_reset.lsb]
         do_start = byte0 & is_reg["CTRL"] & wd[f_start.lsb] & ~do_reset
         refused_start = do_start & busy
-        new_step = wd[f_step.lsb:f_step.msb + 1]
+        new_step = wd[f_step.lsb:f_step.msb + 1] if f_step else 0
         whole = ws == 0xF
-        buf_err = ~w_buf | busy | ((w_elem >= sp_lo) & (w_elem < sp_hi)) | ((ws != 0) & ~whole)
+        buf_err = ~w_buf | busy
+        for lo_e, count in read_only:
+            buf_err = buf_err | ((w_elem >= lo_e) & (w_elem < lo_e + count))
+        buf_err = buf_err | ((ws != 0) & ~whole)
         reg_err = ~(is_reg["CTRL"] | is_reg["STATUS"] | is_reg.get("IRQ_ENABLE", 0)) | refused_start
         m.d.comb += bus.w_err.eq(Mux(w_buf, buf_err, reg_err))
 
@@ -163,7 +175,7 @@ class Backend(wiring.Component):
         values = {
             "ID": id_value & 0xFFFF_FFFF,
             "ID_HI": id_value >> 32,
-            "CTRL": pack({f_step.lsb: step}),
+            "CTRL": pack({f_step.lsb: step} if f_step else {}),
             "STATUS": pack({f_busy.lsb: busy, **{lsb[e]: seen[e] for e in _EVENTS}}),
         }
         if "IRQ_ENABLE" in regs:
@@ -191,12 +203,17 @@ class Backend(wiring.Component):
         return m
 
 
-class Ukf(wiring.Component):
-    """The UKF IP core of ``params`` (see the module docstring and the generated ``TOP.md``).
+class EngineCore(wiring.Component):
+    """An engine core: the linear-algebra engine of ``schedules`` behind an AXI4 slave with
+    the registers and buffer of ``rmap`` (:class:`Backend`). The UKF and the IMM are two.
 
     Parameters
     ----------
-    params : UkfParams
+    params
+        The core's parameters (``fmt``, ``irq`` used here).
+    rmap : RegisterMap
+    schedules : dict of str to Schedule
+        The engine's steps, in ``CTRL.step``'s order.
 
     Members
     -------
@@ -212,11 +229,10 @@ class Ukf(wiring.Component):
     latency = None
     initiation_interval = None
 
-    def __init__(self, params):
+    def __init__(self, params, rmap, schedules):
         self._params = params
-        self._map = ukf_map(params)
-        self._programs = programs(params)
-        self._schedules = schedules(params, self._programs)
+        self._map = rmap
+        self._schedules = schedules
         self._engine = Engine(self._schedules)
         self._members = axi4_slave_members(self._map.address_width, BUS_ID_WIDTH)
         super().__init__({**self._members, **({"irq": Out(1)} if params.irq else {})})
@@ -243,9 +259,19 @@ class Ukf(wiring.Component):
         m = Module()
         m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH)
         m.submodules.engine = self._engine
-        m.submodules.back = back = Backend(self._params, self._engine)
+        m.submodules.back = back = Backend(self._params, self._engine, self._map)
         wiring.connect(m, front.bus, back.bus)
         forward(m, self, front, self._members)
         if self._params.irq:
             m.d.comb += self.irq.eq(back.irq)
         return m
+
+
+class Ukf(EngineCore):
+    """The UKF IP core of ``params`` (a :class:`~kfgen.hdl.ukf.params.UkfParams`; see the
+    module docstring and the generated ``TOP.md``): the three steps sig_gen, predict and
+    update."""
+
+    def __init__(self, params):
+        self._programs = programs(params)
+        super().__init__(params, ukf_map(params), schedules(params, self._programs))

@@ -1,7 +1,9 @@
 """Bit-exact golden model of the linear-algebra engine: runs a step program on memory words.
 
 Every multiply-add, division and square root is rounded once by the exact reference
-:func:`kfgen.sim.float_ref.ref_op`, in the program's order; since the order of every
+:func:`kfgen.sim.float_ref.ref_op`, every exponential as the unit computes it
+(:func:`kfgen.sim.fpu.exp_model.exp_model`, itself checked against an exact exp), in the
+program's order; since the order of every
 accumulation is part of the program, this is what the hardware computes, word for word,
 whatever the schedule.
 """
@@ -10,10 +12,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfgen.hdl.linalg.program import Copy, Div, Dot, Program, Sqrt
+from kfgen.hdl.linalg.program import Copy, Div, Dot, Exp, Max, Program, Sqrt
 from kfgen.sim.float_ref import ref_op
+from kfgen.sim.fpu.exp_model import exp_model
 
-__all__ = ["Status", "run", "to_words", "from_words"]
+__all__ = ["Status", "run", "max_value", "to_words", "from_words"]
 
 
 @dataclass
@@ -49,6 +52,13 @@ def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
             st.flags |= fl
         elif isinstance(op, Copy):
             acc = mem[op.src]
+        elif isinstance(op, Exp):
+            y, fl = exp_model(fmt, [mem[op.a]], subnormals)
+            acc, fl = int(y[0]), int(fl[0])
+            st.flags |= fl
+        elif isinstance(op, Max):
+            acc, nan = max_value(fmt, mem[op.a], mem[op.b])
+            st.flags |= 0b10000 if nan else 0
         else:
             raise TypeError(f"unknown operation {op!r}")
         special = acc & exp_all == exp_all  # NaN or infinity
@@ -59,6 +69,18 @@ def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
         for d in op.dst:
             mem[d] = acc
     return st
+
+
+def max_value(fmt, a: int, b: int) -> tuple[int, bool]:
+    """``(max(a, b), a NaN was read)`` of two words, as :class:`Max` defines it."""
+    exp_all = fmt.exp_max_field << fmt.frac_bits
+    if any(x & exp_all == exp_all and x & fmt.frac_mask for x in (a, b)):
+        return fmt.canonical_nan, True
+    sign = 1 << (fmt.width - 1)
+
+    def key(x):  # order of the values: -inf < ... < -0 < +0 < ... < +inf
+        return -(x & ~sign) - 1 if x & sign else x
+    return (b if key(b) > key(a) else a), False
 
 
 def to_words(fmt, values) -> list[int]:
