@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 from ..describe import ParamError
 
-__all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map",
+__all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map", "place_map",
            "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS"]
 
 #: ID.core of the UKF (ASCII 'U').
@@ -340,20 +340,31 @@ def ukf_map(params) -> RegisterMap:
     ParamError
         ``address_width`` when ``params.address_width`` is too narrow for the map.
     """
-    registers = _registers(params)
-    fmt = params.fmt
+    return place_map(_registers(params), _regions(params), params.fmt, params.address_width)
+
+
+def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
+    """The map of ``registers`` (from 0x0) and a buffer of ``regions`` ((name, rows, cols,
+    access, desc), one after another in the engine's order) of ``fmt`` elements, at the
+    smallest power of two above the registers and at least the buffer's size.
+
+    Raises
+    ------
+    ParamError
+        ``address_width`` when ``address_width`` is too narrow for the map.
+    """
     words = 1 if fmt.width <= BUS_DATA_WIDTH else 2
-    elements = sum(rows * cols for _, rows, cols, _, _ in _regions(params))
+    elements = sum(rows * cols for _, rows, cols, _, _ in regions)
     need = max(elements * words * _WORD, registers[-1].end)
     base = 1 << (need - 1).bit_length()
     width = base.bit_length()  # registers in [0, base), buffer in [base, 2 base)
-    if params.address_width is not None and params.address_width < width:
+    if address_width is not None and address_width < width:
         raise ParamError("address_width", f"the map needs {width} address bits (registers at 0x0, the "
                                           f"{elements * words * _WORD}-byte buffer at {base:#x}), not "
-                                          f"{params.address_width}")
+                                          f"{address_width}")
     memories, offset = [], base
-    for name, rows, cols, access, desc in _regions(params):
+    for name, rows, cols, access, desc in regions:
         mem = Memory(name, offset, (rows, cols), fmt.name, words, access, desc)
         memories.append(mem)
         offset = mem.end
-    return RegisterMap(registers, tuple(memories), params.address_width or width, base)
+    return RegisterMap(registers, tuple(memories), address_width or width, base)

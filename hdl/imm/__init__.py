@@ -1,0 +1,1 @@
+"""The IMM filter core (Hackett et al.) on the linear-algebra engine."""

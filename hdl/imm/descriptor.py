@@ -1,0 +1,91 @@
+"""The IMM core as kfgen's command line, manifest, ``make verilog`` and ``make bench`` see it."""
+
+from __future__ import annotations
+
+from ..describe import CoreDescriptor, Doc
+from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
+
+__all__ = ["CORE"]
+
+
+def _docs() -> dict[str, Doc]:
+    from ..ukf.params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
+    return {
+        "models": Doc("models R: filters mixed by the IMM, each with its own F, Q, H, R", "",
+                      f"an integer in 2..{MODELS_MAX}"),
+        "states": Doc("states n of every model", "", f"an integer in 1..{STATES_MAX}"),
+        "measurements": Doc("measurements d: the length of z (S^-1 by the Schur-complement graph)", "",
+                            f"an integer in 1..{D_MAX}"),
+        "pes": Doc("processing elements P (FMAs working in parallel)", "", f"an integer in 1..{PES_MAX}"),
+        "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
+                        "their area) or pipelined (one operation a cycle); by default iterative at P = 1, "
+                        "pipelined above", "", "iterative or pipelined (any case)"),
+        "banks": Doc("dual-port banks of the operand memory; by default 2P", "", f"an integer in 2..{2 * PES_MAX}"),
+        "format": Doc("float format of every buffer word and of the arithmetic", "",
+                      f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
+                      "(any case)"),
+        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
+                   "on or off (in a --config file: irq = true or false)"),
+        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
+                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
+        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
+                    "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
+    }
+
+
+def _build(params):
+    from .core import Imm
+    return Imm(params)
+
+
+def _extra(params, core) -> dict:
+    from kfgen.gen.regdoc import map_manifest
+    from kfgen.hdl.linalg.schedule import chain_bound
+    from kfgen.hdl.linalg.store import store_size
+
+    sched = core.schedules["iterate"]
+    layout, mc = sched.program.layout, sched.machine
+    store = store_size([sched], layout.size)
+    return {
+        **map_manifest(core.regmap),
+        "cycles": {"iterate": core.cycles("iterate")},
+        "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
+                             "first edge after which STATUS.done reads 1, both counted; irq rises on the "
+                             "next edge",
+        "sizes": {"R": params.R, "n": params.n, "d": params.d},
+        "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),
+                   "chain": chain_bound(sched.program, mc)},
+        "engine": {"pes": mc.pes, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
+                   "sqrt_latency": mc.sqrt_latency, "exp_latency": mc.exp_latency,
+                   "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
+                   "memory_words": layout.size,
+                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
+                                     "bits": store.bits}},
+    }
+
+
+def _documents(params) -> dict[str, str]:
+    from kfgen.gen.regdoc import documents
+
+    from .regmap import imm_map
+    return documents(imm_map(params), params.name)
+
+
+def _waivers(params) -> str:
+    from ..ukf.descriptor import _waivers as engine_waivers
+    return engine_waivers(params)
+
+
+CORE = CoreDescriptor(
+    name="imm",
+    summary="interacting multiple model filter (R Kalman filters, mixing and combination) on P float PEs "
+            "behind an AXI4 slave",
+    params=ImmParams,
+    docs=_docs,
+    build=_build,
+    fields_of=lambda p, port: None,
+    extra=_extra,
+    examples=({},),
+    documents=_documents,
+    waivers=_waivers,
+)

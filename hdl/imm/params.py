@@ -1,0 +1,117 @@
+"""Parameters of the IMM core, validated once (pure Python, no Amaranth).
+
+``--models R --states n --measurements d``: R models of n states measured by d values. The
+defaults are the slides' satellite-link scenario (:mod:`kfgen.sim.imm.scenario`): five
+channel conditions, a constant-acceleration model of SNR and SIR (n = 6), both measured
+(d = 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from ..arith.float.format import FloatFormat
+from ..describe import ParamError, check_name
+from ..schur.program import SIZE_MAX as D_MAX
+from ..ukf.params import ADDRESS_WIDTH_MAX, DIV_SQRT, FORMAT_WIDTH_MAX
+
+__all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
+
+#: Largest R and n: the ID register holds each in 8 bits.
+MODELS_MAX = 255
+STATES_MAX = 255
+#: Most processing elements (the ID register's field; the scheduler gains little beyond).
+PES_MAX = 64
+
+
+@dataclass(frozen=True)
+class ImmParams:
+    """One IMM core.
+
+    Parameters
+    ----------
+    models : int
+        R >= 2 models (filters), each with its own F, Q, H and R in the buffer.
+    states : int
+        n, the length of every model's state.
+    measurements : int
+        d, the length of z; S^-1 by the Schur-complement graph (d <= 8).
+    pes : int
+        Processing elements P.
+    div_sqrt : str or None
+        ``iterative`` or ``pipelined`` divider and square root; ``None``: iterative at P = 1.
+    banks : int or None
+        Dual-port banks of the operand memory; ``None``: 2P.
+    format : str
+        Float format of the buffer and the arithmetic.
+    irq : bool
+    address_width : int or None
+        AXI byte-address width; ``None``: the smallest that holds the map.
+    name : str
+        Top-level module name.
+    """
+
+    models: int = 5
+    states: int = 6
+    measurements: int = 2
+    pes: int = 1
+    div_sqrt: str | None = None
+    banks: int | None = None
+    format: str = "binary32"
+    irq: bool = True
+    address_width: int | None = None
+    name: str = "imm"
+
+    def __post_init__(self):
+        for key, lo, hi, what in (("models", 2, MODELS_MAX, "models R"), ("states", 1, STATES_MAX, "states n"),
+                                  ("measurements", 1, D_MAX, "measurements d")):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ParamError(key, f"the number of {what} must be an integer in {lo}..{hi}, not {v!r}")
+        if isinstance(self.pes, bool) or not isinstance(self.pes, int) or not 1 <= self.pes <= PES_MAX:
+            raise ParamError("pes", f"must be an integer in 1..{PES_MAX}, not {self.pes!r}")
+        kind = self.div_sqrt.lower() if isinstance(self.div_sqrt, str) else self.div_sqrt
+        if kind is None:
+            kind = DIV_SQRT[0] if self.pes == 1 else DIV_SQRT[1]
+        if kind not in DIV_SQRT:
+            raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {self.div_sqrt!r}")
+        object.__setattr__(self, "div_sqrt", kind)
+        banks = 2 * self.pes if self.banks is None else self.banks
+        if isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * PES_MAX:
+            raise ParamError("banks", f"must be an integer in 2..{2 * PES_MAX}, not {banks!r}")
+        object.__setattr__(self, "banks", banks)
+        try:
+            fmt = FloatFormat.parse(self.format)
+        except ValueError as exc:
+            raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
+        if fmt.width > FORMAT_WIDTH_MAX:
+            raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
+                                       f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
+        object.__setattr__(self, "format", fmt.name)
+        if not isinstance(self.irq, bool):
+            raise ParamError("irq", f"must be true or false, not {self.irq!r}")
+        aw = self.address_width
+        if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
+            raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
+        check_name(self.name)
+        from .regmap import imm_map  # checks that the map fits, and gives the width it needs
+        object.__setattr__(self, "address_width", imm_map(self).address_width)
+
+    @property
+    def R(self) -> int:
+        return self.models
+
+    @property
+    def n(self) -> int:
+        return self.states
+
+    @property
+    def d(self) -> int:
+        return self.measurements
+
+    @property
+    def fmt(self) -> FloatFormat:
+        return FloatFormat.parse(self.format)
+
+    def to_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
