@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ..verilator import Build, build, run_test
@@ -29,14 +30,15 @@ def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool | None = None)
     return build([rtl_dir / f"{top}.v"], top, cache_dir or rtl_dir / "sim_build", waves=waves, cycles=RUN_CYCLES)
 
 
-def run_ukf(model: Build, rtl_dir, top: str, tests: list[str], name: str, env: dict | None = None) -> None:
-    """Run the testbench's ``tests`` (function names) on a build, in ``rtl_dir/runs``; fails with
-    the log's tail."""
+def run_ukf(model: Build, rtl_dir, top: str, tests: list[str], name: str, env: dict | None = None,
+            module: str = "kfgen.sim.ukf.tb") -> None:
+    """Run the testbench's ``tests`` (function names of ``module``, the UKF's by default) on a
+    build, in ``rtl_dir/runs``; fails with the log's tail."""
     rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
     run_dir = rtl_dir / "runs"
     run_dir.mkdir(parents=True, exist_ok=True)
-    pattern = "|".join(rf"kfgen\.sim\.ukf\.tb\.{t}\b" for t in tests)
-    run_test(model, "kfgen.sim.ukf.tb", run_dir, name,
+    pattern = "|".join(rf"{re.escape(module)}\.{t}\b" for t in tests)
+    run_test(model, module, run_dir, name,
              {"KFGEN_TB_MANIFEST": str(rtl_dir / f"{top}.json"), "COCOTB_TEST_FILTER": pattern, **(env or {})})
 
 

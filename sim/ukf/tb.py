@@ -52,11 +52,18 @@ def h(x, v):
 
 
 class TB:
+    """Drives an engine core (the UKF's; :class:`kfgen.sim.imm.tb.ImmTB` the IMM's) through
+    AXI4 and keeps its golden memory. ``PARAMS`` and ``PROGRAMS`` make the core's parameters
+    and step programs from the manifest."""
+
+    PARAMS = UkfParams
+    PROGRAMS = staticmethod(programs)
+
     def __init__(self, dut):
         self.dut = dut
         self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
-        self.params = UkfParams(**self.manifest["parameters"])
-        self.ukf = programs(self.params)
+        self.params = self.PARAMS(**self.manifest["parameters"])
+        self.ukf = self.PROGRAMS(self.params)
         self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
         self.gold = self.layout.initial_memory()
         self.regs = {r["name"]: r for r in self.manifest["registers"]}
@@ -161,7 +168,8 @@ class TB:
 
     # ------------------------------------------------------------- steps
     async def start(self, step):
-        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, step=step))
+        has_step = any(fd["name"] == "step" for fd in self.regs["CTRL"]["fields"])
+        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, **({"step": step} if has_step else {})))
         return resp
 
     async def step(self, name):
@@ -186,8 +194,8 @@ class TB:
         return st, measured
 
 
-async def setup(dut):
-    tb = TB(dut)
+async def setup(dut, cls=TB):
+    tb = cls(dut)
     await tb.reset()
     enable = tb.bits("IRQ_ENABLE", done=1, err_pivot=1, err_nan=1, err_busy=1)
     assert await tb.write_reg("IRQ_ENABLE", enable) == AxiResp.OKAY
