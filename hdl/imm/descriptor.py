@@ -88,4 +88,5 @@ CORE = CoreDescriptor(
     examples=({},),
     documents=_documents,
     waivers=_waivers,
+    bench="kfgen.gen.bench_imm",
 )

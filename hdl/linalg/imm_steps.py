@@ -25,6 +25,11 @@ COM (combination)
 Every covariance (P0_j, P^-, P_j, P) is computed as one triangle and mirrored on write-back,
 so the matrices stay exactly symmetric over any number of iterations.
 
+For a short dependency chain: x0_j and x are summed unnormalised while their reciprocal is
+divided (x0_j = (sum_i pi_ij mu_i x_i) / c_j, x = (sum_j w_j x_j) / sum_j w_j); the
+covariance sums list their terms that are ready early (w_ij P_i, mu_j P_j) first; t_j is
+(-y_j / 2)^T S_j^-1 y_j, the halving done while S_j^-1 is formed.
+
 Checks: a predicted model probability c_j, a Schur pivot of S_j, |S_j| and the sum of the
 w_j are pivots (err_pivot when <= 0 or NaN); the new mu, x_j, P_j, x and P are checked finite
 (err_nan).
@@ -98,6 +103,7 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
     c = lay.add("c", R)
     rc = lay.add("rc", R)
     W = lay.add("w_mix", R, R)
+    x0u = lay.add("x0_sum", R, n)
     x0 = lay.add("x0", R, n)
     e = lay.add("e_mix", R * R, n)  # e_ij, row i * R + j
     we = lay.add("we_mix", R * R, n)  # w_ij e_ij
@@ -113,7 +119,7 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
     sch = lay.add("schur", R, len(inner))
     K = lay.add("K", R * n, d)
     v = lay.add("Sinv_y", R, d)
-    q = lay.add("q", R)
+    yh = lay.add("innov_half", R, d)
     t = lay.add("t", R)
     sd = lay.add("sqrt_det", R)
     rsd = lay.add("rsqrt_det", R)
@@ -124,6 +130,7 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
     w = lay.add("w", R)
     sw = lay.add("w_sum", 1)
     rsw = lay.add("w_rsum", 1)
+    xu = lay.add("x_sum", n)
     dx = lay.add("dx_com", R, n)
     mdx = lay.add("mu_dx_com", R, n)
     one = lay.const("one", [_word(fmt, 1)])(0, 0)
@@ -149,18 +156,17 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
         for i in range(R):
             dot(W(i, j), None, [(pm(i, j), rc(j), False)])
     for j in range(R):
-        for k in range(n):
-            dot(x0(j, k), None, [(W(i, j), xm(i, k), False) for i in range(R)])
+        for k in range(n):  # x0 = (sum_i pi_ij mu_i x_i) / c_j: the sum while the division runs
+            dot(x0u(j, k), None, [(pm(i, j), xm(i, k), False) for i in range(R)])
+            dot(x0(j, k), None, [(x0u(j, k), rc(j), False)])
         for i in range(R):
             for k in range(n):
                 dot(e(i * R + j, k), xm(i, k), [(one, x0(j, k), True)])
                 dot(we(i * R + j, k), None, [(W(i, j), e(i * R + j, k), False)])
         for r in range(n):
             for s in range(r + 1):
-                terms = []
-                for i in range(R):
-                    terms += [(W(i, j), Pm(i * n + r, s), False),
-                              (we(i * R + j, r), e(i * R + j, s), False)]
+                terms = [(W(i, j), Pm(i * n + r, s), False) for i in range(R)]  # the early terms first
+                terms += [(we(i * R + j, r), e(i * R + j, s), False) for i in range(R)]
                 dot(sym(P0, j * n, r, s), None, terms)
 
     # ---- KF, model by model ---------------------------------------------------------------
@@ -226,10 +232,10 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
             for s in range(r + 1):
                 dot(sym(Pm, fr, r, s), Pp(fr + r, s), [(K(fr + r, i), HP(hr + i, s), True)
                                                        for i in range(d)], "finite")
-        for i in range(d):  # q = y^T S^-1 y, t = -q / 2
+        for i in range(d):  # t = -q / 2 = (-y / 2)^T S^-1 y, the halving while S^-1 is formed
+            dot(yh(j, i), None, [(y(j, i), nhalf, False)])
             dot(v(j, i), None, [(sinv(i, k), y(j, k), False) for k in range(d)])
-        dot(q(j), None, [(y(j, i), v(j, i), False) for i in range(d)])
-        dot(t(j), None, [(q(j), nhalf, False)])
+        dot(t(j), None, [(yh(j, i), v(j, i), False) for i in range(d)])
         pr.emit(Sqrt(sd(j), det, "pivot"))
         pr.emit(Div(rsd(j), one, sd(j)))
 
@@ -247,16 +253,16 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
     pr.emit(Div(rsw(0), one, sw(0)))
     for j in range(R):
         dot(mu(j), None, [(w(j), rsw(0), False)], "finite")
-    for r in range(n):
-        dot(x(r), None, [(mu(j), xm(j, r), False) for j in range(R)], "finite")
+    for r in range(n):  # x = (sum_j w_j x_j) / sum_j w_j: the sum while the division runs
+        dot(xu(r), None, [(w(j), xm(j, r), False) for j in range(R)])
+        dot(x(r), None, [(xu(r), rsw(0), False)], "finite")
     for j in range(R):
         for r in range(n):
             dot(dx(j, r), xm(j, r), [(one, x(r), True)])
             dot(mdx(j, r), None, [(mu(j), dx(j, r), False)])
     for r in range(n):
         for s in range(r + 1):
-            terms = []
-            for j in range(R):
-                terms += [(mu(j), Pm(j * n + r, s), False), (mdx(j, r), dx(j, s), False)]
+            terms = [(mu(j), Pm(j * n + r, s), False) for j in range(R)]  # the early terms first
+            terms += [(mdx(j, r), dx(j, s), False) for j in range(R)]
             dot(sym(P, 0, r, s), None, terms, "finite")
     return ImmPrograms(sizes, fmt, lay, pr)
