@@ -159,3 +159,40 @@ async def errors(dut):
     assert st.pivot
     assert not await tb.read_reg("STATUS") & 1
     await tb.check("mu")
+
+
+@cocotb.test()
+async def scenario(dut):
+    """The slides' satellite-link scenario (:func:`kfgen.sim.imm.scenario.satlink`) on the
+    core, as software would run it: the models once, then a measurement and a start an
+    iteration; every output word read back and checked against the golden model. Saves the
+    model probabilities, combined and per-model states to ``KFGEN_IMM_OUT`` (``.npz``).
+
+    Environment: ``KFGEN_STEPS`` (default 50), ``KFGEN_SEED`` (the scenario's, default its own)."""
+    from kfgen.sim.imm.scenario import SEED, satlink
+
+    tb = await setup(dut, ImmTB)
+    p = tb.params
+    steps = int(os.environ.get("KFGEN_STEPS", "50"))
+    sc = satlink(steps, int(os.environ.get("KFGEN_SEED", str(SEED))))
+    sysm = sc.system
+    if (len(sysm.models), sysm.n, sysm.d) != (p.R, p.n, p.d):
+        raise ValueError(f"the scenario needs R = {len(sysm.models)}, n = {sysm.n}, d = {sysm.d}")
+    await load(tb, {"pi": sysm.pi, "mu": sc.mu0,
+                    "F": np.vstack([m.F for m in sysm.models]), "Q": np.vstack([m.Q for m in sysm.models]),
+                    "H": np.vstack([m.H for m in sysm.models]), "R": np.vstack([m.R for m in sysm.models]),
+                    "x_model": sc.xs0, "P_model": np.vstack(list(sc.Ps0))})
+    mu, x, xs, P = [], [], [], []
+    start = tb.cycle
+    for k in range(steps):
+        st, _, out = await iterate(tb, sc.zs[k])
+        assert not (st.pivot or st.nan), (k, st)
+        mu.append(out["mu"].ravel())
+        x.append(out["x"].ravel())
+        xs.append(out["x_model"])
+        P.append(out["P"])
+        if k % 100 == 0:
+            dut._log.info("step %d: mu %s", k, np.round(mu[-1], 4))
+    if os.environ.get("KFGEN_IMM_OUT"):
+        np.savez(os.environ["KFGEN_IMM_OUT"], mu=np.array(mu), x=np.array(x), xs=np.array(xs), P=np.array(P),
+                 seed=sc.seed, cycles=tb.cycle - start)
