@@ -169,6 +169,7 @@ async def scenario(dut):
     model probabilities, combined and per-model states to ``KFGEN_IMM_OUT`` (``.npz``).
 
     Environment: ``KFGEN_STEPS`` (default 50), ``KFGEN_SEED`` (the scenario's, default its own)."""
+    from kfgen.sim.imm.golden import buffer_values
     from kfgen.sim.imm.scenario import SEED, satlink
 
     tb = await setup(dut, ImmTB)
@@ -178,10 +179,7 @@ async def scenario(dut):
     sysm = sc.system
     if (len(sysm.models), sysm.n, sysm.d) != (p.R, p.n, p.d):
         raise ValueError(f"the scenario needs R = {len(sysm.models)}, n = {sysm.n}, d = {sysm.d}")
-    await load(tb, {"pi": sysm.pi, "mu": sc.mu0,
-                    "F": np.vstack([m.F for m in sysm.models]), "Q": np.vstack([m.Q for m in sysm.models]),
-                    "H": np.vstack([m.H for m in sysm.models]), "R": np.vstack([m.R for m in sysm.models]),
-                    "x_model": sc.xs0, "P_model": np.vstack(list(sc.Ps0))})
+    await load(tb, buffer_values(sysm, sc.mu0, sc.xs0, sc.Ps0))
     mu, x, xs, P = [], [], [], []
     start = tb.cycle
     for k in range(steps):
