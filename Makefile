@@ -63,7 +63,7 @@ plots: $(DEV)
 	$(PY) -m kfgen.sim.castella.mc build/mc
 	$(PY) -m kfgen.sim.castella.plots -o sim/castella/figures --verilator build/mc/verilator_mc.npz
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --rtl build/ukf_cosim
-	$(PY) -m kfgen.sim.imm.plots -o sim/imm/figures
+	$(PY) -m kfgen.sim.imm.plots -o sim/imm/figures --rtl build/imm_scenario
 
 clean:
 	rm -rf $(OUT) build .pytest_cache

@@ -13,6 +13,7 @@ trace); each is drawn in both figures.
 Usage::
 
     python -m kfgen.sim.imm.plots [--steps 2000] [--seed 4] [-o sim/imm/figures] [--traces FILE.npz]
+                                  [--rtl DIR]
 """
 
 from __future__ import annotations
@@ -33,6 +34,10 @@ COLORS = ("tab:green", "tab:blue", "tab:purple", "tab:olive", "tab:brown")
 _EXTRA = ("tab:orange", "tab:cyan", "tab:pink", "tab:gray")
 #: running RMS window, steps
 WINDOW = 50
+
+
+#: The RTL core's trace (``--rtl``).
+RTL = "RTL core (binary32, Verilator)"
 
 
 def _pyplot():
@@ -232,9 +237,16 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=SEED)
     ap.add_argument("--traces", metavar="FILE.npz",
                     help="more traces: arrays NAME:mu (steps, 5) and NAME:x (steps, 6) per trace")
+    ap.add_argument("--rtl", metavar="DIR",
+                    help="also run the scenario through the generated IMM core in Verilator (P = 4, "
+                         "every word checked against the golden model), working in DIR, and draw its trace")
     args = ap.parse_args(argv)
-    extra = _load_traces(args.traces) if args.traces else None
-    for path in figures(args.outdir, args.steps, args.seed, extra):
+    extra = _load_traces(args.traces) if args.traces else {}
+    if args.rtl:
+        from kfgen.sim.imm.run import run_scenario
+        trace = run_scenario(args.rtl, args.steps, pes=4, seed=args.seed)
+        extra[RTL] = (trace["mu"], trace["x"])
+    for path in figures(args.outdir, args.steps, args.seed, extra or None):
         print(path)
 
 
