@@ -14,7 +14,7 @@ def _docs() -> dict[str, Doc]:
         "models": Doc("models R: filters mixed by the IMM, each with its own F, Q, H, R", "",
                       f"an integer in 2..{MODELS_MAX}"),
         "states": Doc("states n of every model", "", f"an integer in 1..{STATES_MAX}"),
-        "measurements": Doc("measurements d: the length of z (S^-1 by the Schur-complement graph)", "",
+        "measurements": Doc("measurements d: the length of z (S^-1 by Schur complements)", "",
                             f"an integer in 1..{D_MAX}"),
         "pes": Doc("processing elements P (FMAs working in parallel)", "", f"an integer in 1..{PES_MAX}"),
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
