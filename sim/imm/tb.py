@@ -18,6 +18,7 @@ import os
 import cocotb
 import numpy as np
 from cocotb.triggers import ClockCycles
+from cocotb.utils import get_sim_time
 from cocotbext.axi import AxiResp
 
 from kfgen.hdl.imm.params import ImmParams
@@ -181,7 +182,7 @@ async def scenario(dut):
         raise ValueError(f"the scenario needs R = {len(sysm.models)}, n = {sysm.n}, d = {sysm.d}")
     await load(tb, buffer_values(sysm, sc.mu0, sc.xs0, sc.Ps0))
     mu, x, xs, P = [], [], [], []
-    start = tb.cycle
+    t0 = get_sim_time("ns")
     for k in range(steps):
         st, _, out = await iterate(tb, sc.zs[k])
         assert not (st.pivot or st.nan), (k, st)
@@ -193,4 +194,4 @@ async def scenario(dut):
             dut._log.info("step %d: mu %s", k, np.round(mu[-1], 4))
     if os.environ.get("KFGEN_IMM_OUT"):
         np.savez(os.environ["KFGEN_IMM_OUT"], mu=np.array(mu), x=np.array(x), xs=np.array(xs), P=np.array(P),
-                 seed=sc.seed, cycles=tb.cycle - start)
+                 seed=sc.seed, cycles=int((get_sim_time("ns") - t0) // 10))

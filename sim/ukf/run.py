@@ -13,7 +13,8 @@ __all__ = ["build_ukf_core", "run_ukf", "build_driver", "run_cosim"]
 RUN_CYCLES = 100_000
 
 
-def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool | None = None) -> Build:
+def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool | None = None,
+                   cycles: int = RUN_CYCLES) -> Build:
     """Verilate ``rtl_dir/TOP.v`` (a ``kfgen ukf`` output) into the build cache ``cache_dir``
     (default ``rtl_dir/sim_build``).
 
@@ -21,13 +22,14 @@ def build_ukf_core(rtl_dir, top: str, cache_dir=None, waves: bool | None = None)
     few hundred cycles, the bus transfers between them, with backpressure), far below
     :data:`kfgen.sim.verilator.LONG_RUN_CYCLES`, so the build takes the cheap C++ optimisation.
     ``waves`` (default: the environment's ``KFGEN_WAVES``, so that ``KFGEN_WAVES=1 make test``
-    traces every run) builds with FST tracing: each run then leaves ``runs/<name>.fst``."""
+    traces every run) builds with FST tracing: each run then leaves ``runs/<name>.fst``. A
+    longer run passes its ``cycles`` (the C++ is then optimised, :func:`kfgen.sim.verilator.cxx_opt`)."""
     import os
 
     if waves is None:
         waves = bool(os.environ.get("KFGEN_WAVES"))
     rtl_dir = Path(rtl_dir)
-    return build([rtl_dir / f"{top}.v"], top, cache_dir or rtl_dir / "sim_build", waves=waves, cycles=RUN_CYCLES)
+    return build([rtl_dir / f"{top}.v"], top, cache_dir or rtl_dir / "sim_build", waves=waves, cycles=cycles)
 
 
 def run_ukf(model: Build, rtl_dir, top: str, tests: list[str], name: str, env: dict | None = None,

@@ -75,6 +75,12 @@ class TB:
         cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
         self.axi = AxiMaster(AxiBus.from_prefix(dut, "s_axi"), dut.clk, dut.rst)
         logging.getLogger(f"cocotb.{dut._name}.s_axi").setLevel(logging.WARNING)
+        # KFGEN_TB_CALM=1 (long runs): no per-clock monitor (no handshake checkers, no cycle
+        # measurement) and no random pauses, so that the simulation wakes Python only for the
+        # bus's own transfers
+        self.calm = bool(int(os.environ.get("KFGEN_TB_CALM", "0")))
+        if self.calm:
+            return
         self.checkers = [
             StreamChecker("R", dut.s_axi_rvalid, dut.s_axi_rready,
                           {k: getattr(dut, f"s_axi_{k}") for k in ("rid", "rdata", "rresp", "rlast")}),
@@ -95,7 +101,8 @@ class TB:
         await ClockCycles(self.dut.clk, 3)
         self.dut.rst.value = 0
         await RisingEdge(self.dut.clk)
-        cocotb.start_soon(self._monitor())
+        if not self.calm:
+            cocotb.start_soon(self._monitor())
 
     async def _monitor(self):
         """Once a clock, before the rising edge: handshake rules, W beats and irq rises."""
@@ -179,13 +186,18 @@ class TB:
         beats = len(self.w_beats)
         rises = len(self.irq_rises)
         assert await self.start(name) == AxiResp.OKAY
-        if len(self.irq_rises) == rises:
-            await RisingEdge(self.dut.irq)
-            await RisingEdge(self.dut.clk)  # the monitor has recorded the rise
-        # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1 after
-        # edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next one
-        measured = self.irq_rises[rises] - self.w_beats[beats] - 1
-        assert measured == self.manifest["cycles"][name], (name, measured, self.manifest["cycles"][name])
+        if self.calm:  # no cycle count (None): wait for irq, then check the status as below
+            if not self.dut.irq.value:
+                await RisingEdge(self.dut.irq)
+            measured = None
+        else:
+            if len(self.irq_rises) == rises:
+                await RisingEdge(self.dut.irq)
+                await RisingEdge(self.dut.clk)  # the monitor has recorded the rise
+            # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1
+            # after edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next
+            measured = self.irq_rises[rises] - self.w_beats[beats] - 1
+            assert measured == self.manifest["cycles"][name], (name, measured, self.manifest["cycles"][name])
         status = await self.read_reg("STATUS")
         want = self.bits("STATUS", done=1, err_pivot=st.pivot, err_nan=st.nan)
         assert status == want, (name, hex(status), hex(want))
