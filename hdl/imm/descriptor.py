@@ -9,7 +9,7 @@ __all__ = ["CORE"]
 
 
 def _docs() -> dict[str, Doc]:
-    from ..ukf.params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
+    from ..ukf.descriptor import engine_docs
     return {
         "models": Doc("models R: filters mixed by the IMM, each with its own F, Q, H, R", "",
                       f"an integer in 2..{MODELS_MAX}"),
@@ -21,15 +21,7 @@ def _docs() -> dict[str, Doc]:
                         "their area) or pipelined (one operation a cycle); by default iterative at P = 1, "
                         "pipelined above", "", "iterative or pipelined (any case)"),
         "banks": Doc("dual-port banks of the operand memory; by default 2P", "", f"an integer in 2..{2 * PES_MAX}"),
-        "format": Doc("float format of every buffer word and of the arithmetic", "",
-                      f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
-                      "(any case)"),
-        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
-                   "on or off (in a --config file: irq = true or false)"),
-        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
-                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
-        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
-                    "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
+        **engine_docs(),
     }
 
 

@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 from ..arith.float.format import FloatFormat
-from ..describe import ParamError, check_name
+from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
-from ..ukf.params import ADDRESS_WIDTH_MAX, DIV_SQRT, FORMAT_WIDTH_MAX
+from ..ukf.params import check_bus, check_div_sqrt, check_format
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 
@@ -70,30 +70,13 @@ class ImmParams:
                 raise ParamError(key, f"the number of {what} must be an integer in {lo}..{hi}, not {v!r}")
         if isinstance(self.pes, bool) or not isinstance(self.pes, int) or not 1 <= self.pes <= PES_MAX:
             raise ParamError("pes", f"must be an integer in 1..{PES_MAX}, not {self.pes!r}")
-        kind = self.div_sqrt.lower() if isinstance(self.div_sqrt, str) else self.div_sqrt
-        if kind is None:
-            kind = DIV_SQRT[0] if self.pes == 1 else DIV_SQRT[1]
-        if kind not in DIV_SQRT:
-            raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {self.div_sqrt!r}")
-        object.__setattr__(self, "div_sqrt", kind)
+        object.__setattr__(self, "div_sqrt", check_div_sqrt(self.div_sqrt, self.pes))
         banks = 2 * self.pes if self.banks is None else self.banks
         if isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * PES_MAX:
             raise ParamError("banks", f"must be an integer in 2..{2 * PES_MAX}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
-        try:
-            fmt = FloatFormat.parse(self.format)
-        except ValueError as exc:
-            raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
-        if fmt.width > FORMAT_WIDTH_MAX:
-            raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
-                                       f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
-        object.__setattr__(self, "format", fmt.name)
-        if not isinstance(self.irq, bool):
-            raise ParamError("irq", f"must be true or false, not {self.irq!r}")
-        aw = self.address_width
-        if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
-            raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
-        check_name(self.name)
+        object.__setattr__(self, "format", check_format(self.format))
+        check_bus(self)
         from .regmap import imm_map  # checks that the map fits, and gives the width it needs
         object.__setattr__(self, "address_width", imm_map(self).address_width)
 

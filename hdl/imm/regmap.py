@@ -10,7 +10,7 @@ iteration: mixing, the R Kalman filters and the combination (:mod:`kfgen.hdl.lin
 
 from __future__ import annotations
 
-from ..ukf.regmap import Field, Register, RegisterMap, place_map
+from ..ukf.regmap import Field, Register, RegisterMap, place_map, status_registers
 
 __all__ = ["imm_map", "CORE_ID", "MAP_VERSION"]
 
@@ -50,18 +50,8 @@ def _registers(params) -> tuple[Register, ...]:
             Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running iteration stops, the core is "
                                         "idle, STATUS is cleared; the buffer is kept"),
         )),
-        Register("STATUS", 0xC, 32, "What the core is doing and how the last iteration ended; the event bits "
-                 "stay set until written 1.", (
-                     Field("busy", 0, 1, "ro",
-                           "an iteration is running; buffer writes answer SLVERR, buffer reads wait for a free port"),
-                     *(Field(name, lsb, 1, "w1c", desc) for name, lsb, desc in EVENTS),
-                 )),
+        *status_registers(EVENTS, "iteration", params.irq),
     ]
-    if params.irq:
-        regs.append(Register(
-            "IRQ_ENABLE", 0x10, 32, "Which STATUS events drive irq: irq = (STATUS & IRQ_ENABLE) != 0, a "
-            "level, high until the event bits are cleared.",
-            tuple(Field(name, lsb, 1, "rw", f"irq on STATUS.{name}") for name, lsb, _ in EVENTS)))
     return tuple(regs)
 
 

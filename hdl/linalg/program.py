@@ -140,8 +140,8 @@ class Dot:
 
 
 @dataclass(frozen=True)
-class Div:
-    """``dst = a / b`` on the shared divider."""
+class _Binary:
+    """``dst = unit(a, b)`` on a shared unit (``UNIT``)."""
 
     dst: tuple[int, ...]
     a: int
@@ -160,12 +160,12 @@ class Div:
 
     @property
     def unit(self) -> str:
-        return "div"
+        return self.UNIT
 
 
 @dataclass(frozen=True)
-class Sqrt:
-    """``dst = sqrt(a)`` on the shared square root."""
+class _Unary:
+    """``dst = unit(a)`` on a shared unit (``UNIT``)."""
 
     dst: tuple[int, ...]
     a: int
@@ -182,7 +182,32 @@ class Sqrt:
 
     @property
     def unit(self) -> str:
-        return "sqrt"
+        return self.UNIT
+
+
+class Div(_Binary):
+    """``dst = a / b`` on the shared divider."""
+
+    UNIT = "div"
+
+
+class Max(_Binary):
+    """``dst = max(a, b)``, exact: the larger value (``+0`` above ``-0``), ``a`` when they are
+    equal, the canonical NaN when either is a NaN."""
+
+    UNIT = "max"
+
+
+class Sqrt(_Unary):
+    """``dst = sqrt(a)`` on the shared square root."""
+
+    UNIT = "sqrt"
+
+
+class Exp(_Unary):
+    """``dst = exp(a)`` on the shared exponential (faithfully rounded, :class:`FloatExp`)."""
+
+    UNIT = "exp"
 
 
 @dataclass(frozen=True)
@@ -205,53 +230,6 @@ class Copy:
     @property
     def unit(self) -> str:
         return "copy"
-
-
-@dataclass(frozen=True)
-class Exp:
-    """``dst = exp(a)`` on the shared exponential (faithfully rounded, :class:`FloatExp`)."""
-
-    dst: tuple[int, ...]
-    a: int
-    check: str | None = None
-
-    def __init__(self, dst, a, check=None):
-        object.__setattr__(self, "dst", _dst(dst))
-        object.__setattr__(self, "a", _addr(a, "a"))
-        object.__setattr__(self, "check", _check(check))
-
-    @property
-    def reads(self):
-        return (self.a,)
-
-    @property
-    def unit(self) -> str:
-        return "exp"
-
-
-@dataclass(frozen=True)
-class Max:
-    """``dst = max(a, b)``, exact: the larger value (``+0`` above ``-0``), ``a`` when they are
-    equal, the canonical NaN when either is a NaN."""
-
-    dst: tuple[int, ...]
-    a: int
-    b: int
-    check: str | None = None
-
-    def __init__(self, dst, a, b, check=None):
-        object.__setattr__(self, "dst", _dst(dst))
-        object.__setattr__(self, "a", _addr(a, "a"))
-        object.__setattr__(self, "b", _addr(b, "b"))
-        object.__setattr__(self, "check", _check(check))
-
-    @property
-    def reads(self):
-        return (self.a, self.b)
-
-    @property
-    def unit(self) -> str:
-        return "max"
 
 
 @dataclass

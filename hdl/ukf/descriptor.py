@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..describe import CoreDescriptor, Doc
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX, SIZE_MAX, UkfParams
 
-__all__ = ["CORE"]
+__all__ = ["CORE", "engine_docs"]
 
 
 def _docs() -> dict[str, Doc]:
@@ -21,10 +21,19 @@ def _docs() -> dict[str, Doc]:
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
         "banks": Doc("dual-port banks of the operand memory: more banks, fewer port conflicts and a larger "
                      "crossbar; by default 2P up to P = 2, P above", "", "an integer in 2..2M"),
+        "format": engine_docs()["format"],
+        "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
+        **{k: v for k, v in engine_docs().items() if k != "format"},
+    }
+
+
+def engine_docs() -> dict[str, Doc]:
+    """The Docs of the parameters every engine core (UKF, IMM) shares: format, irq,
+    address_width, name."""
+    return {
         "format": Doc("float format of every buffer word and of the arithmetic", "",
                       f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
                       "(any case)"),
-        "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
         "irq": Doc("the irq output and the IRQ_ENABLE register", "",
                    "on or off (in a --config file: irq = true or false)"),
         "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "

@@ -16,7 +16,8 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError, check_name
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "check_div_sqrt",
+           "check_format", "check_bus"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
@@ -30,6 +31,40 @@ DIV_SQRT = ("iterative", "pipelined")
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
+
+
+def check_div_sqrt(value, pes: int) -> str:
+    """``div_sqrt`` of an engine core: ``iterative`` or ``pipelined`` (any case); ``None`` is
+    iterative at P = 1, pipelined above."""
+    kind = value.lower() if isinstance(value, str) else value
+    if kind is None:
+        kind = DIV_SQRT[0] if pes == 1 else DIV_SQRT[1]
+    if kind not in DIV_SQRT:
+        raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {value!r}")
+    return kind
+
+
+def check_format(value) -> str:
+    """The float format of an engine core's buffer, by its name: at most two bus words."""
+    try:
+        fmt = FloatFormat.parse(value)
+    except ValueError as exc:
+        raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
+    if fmt.width > FORMAT_WIDTH_MAX:
+        raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
+                                   f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
+    return fmt.name
+
+
+def check_bus(params) -> None:
+    """``irq``, ``address_width`` (the range; whether the map fits is the map's check) and
+    ``name`` of an AXI core."""
+    if not isinstance(params.irq, bool):
+        raise ParamError("irq", f"must be true or false, not {params.irq!r}")
+    aw = params.address_width
+    if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
+        raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
+    check_name(params.name)
 
 
 @dataclass(frozen=True)
@@ -97,35 +132,18 @@ class UkfParams:
         M = self.M
         if isinstance(self.pes, bool) or not isinstance(self.pes, int) or not 1 <= self.pes <= M:
             raise ParamError("pes", f"must be an integer in 1..M = {M} (M = n + nw + nv), not {self.pes!r}")
-        kind = self.div_sqrt.lower() if isinstance(self.div_sqrt, str) else self.div_sqrt
-        if kind is None:
-            kind = DIV_SQRT[0] if self.pes == 1 else DIV_SQRT[1]
-        if kind not in DIV_SQRT:
-            raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {self.div_sqrt!r}")
-        object.__setattr__(self, "div_sqrt", kind)
+        object.__setattr__(self, "div_sqrt", check_div_sqrt(self.div_sqrt, self.pes))
         banks = self.banks
         if banks is None:
             banks = 2 * self.pes if self.pes <= 2 else self.pes
         elif isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * M:
             raise ParamError("banks", f"must be an integer in 2..2M = {2 * M}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
-        try:
-            fmt = FloatFormat.parse(self.format)
-        except ValueError as exc:
-            raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
-        if fmt.width > FORMAT_WIDTH_MAX:
-            raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
-                                       f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
-        object.__setattr__(self, "format", fmt.name)
+        object.__setattr__(self, "format", check_format(self.format))
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:
             raise ParamError("w0", f"must be a number with 0 <= W0 < 1, not {self.w0!r}")
-        if not isinstance(self.irq, bool):
-            raise ParamError("irq", f"must be true or false, not {self.irq!r}")
-        aw = self.address_width
-        if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
-            raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
-        check_name(self.name)
+        check_bus(self)
         from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)
 

@@ -56,7 +56,7 @@ from typing import NamedTuple
 
 from ..describe import ParamError
 
-__all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map", "place_map",
+__all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map", "place_map", "status_registers",
            "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS"]
 
 #: ID.core of the UKF (ASCII 'U').
@@ -300,19 +300,26 @@ def _registers(params) -> tuple[Register, ...]:
                 Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
             )),
         )),
-        Register("STATUS", 0xC, 32, "What the core is doing and how the last step ended; the event bits stay "
-                 "set until written 1.", (
-                     Field("busy", 0, 1, "ro",
-                           "a step is running; buffer writes answer SLVERR, buffer reads wait for a free port"),
-                     *(Field(name, lsb, 1, "w1c", desc) for name, lsb, desc in events),
-                 )),
+        *status_registers(events, "step", params.irq),
     ]
-    if params.irq:
+    return tuple(regs)
+
+
+def status_registers(events, what: str, irq: bool) -> list[Register]:
+    """STATUS at 0xC (``busy``, then the w1c ``events``: (name, lsb, desc)) and, with ``irq``,
+    IRQ_ENABLE at 0x10, of a core whose unit of work is a ``what`` (step, iteration)."""
+    regs = [Register("STATUS", 0xC, 32, f"What the core is doing and how the last {what} ended; the event "
+                     "bits stay set until written 1.", (
+                         Field("busy", 0, 1, "ro", f"a{'n' if what[0] in 'aeiou' else ''} {what} is running; buffer "
+                               "writes answer SLVERR, buffer reads wait for a free port"),
+                         *(Field(name, lsb, 1, "w1c", desc) for name, lsb, desc in events),
+                     ))]
+    if irq:
         regs.append(Register(
             "IRQ_ENABLE", 0x10, 32, "Which STATUS events drive irq: irq = (STATUS & IRQ_ENABLE) != 0, a "
             "level, high until the event bits are cleared.",
             tuple(Field(name, lsb, 1, "rw", f"irq on STATUS.{name}") for name, lsb, _ in events)))
-    return tuple(regs)
+    return regs
 
 
 def _regions(params) -> tuple[tuple[str, int, int, str, str], ...]:

@@ -23,7 +23,7 @@ from cocotbext.axi import AxiResp
 
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
-from kfgen.sim.ukf.tb import TB, setup, wait_idle
+from kfgen.sim.ukf.tb import TB, holes, setup, wait_idle
 
 #: The regions software writes before the first iteration, in buffer order.
 INPUTS = ("pi", "mu", "F", "Q", "H", "R", "x_model", "P_model")
@@ -111,12 +111,7 @@ async def errors(dut):
     tb = await setup(dut, ImmTB)
     p = tb.params
     axi = tb.axi
-    last = max(mm["offset"] + mm["shape"][0] * mm["shape"][1] * 4 * tb.words for mm in tb.mems.values())
-    for addr in (0x18, tb.manifest["bus"]["size"] // 2 - 4, last):
-        got = await axi.read(addr, 4)
-        assert (got.resp, got.data) == (AxiResp.SLVERR, bytes(4)), hex(addr)
-        assert (await axi.write(addr, b"\xff" * 4)).resp == AxiResp.SLVERR, hex(addr)
-    assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
+    await holes(tb)
     for name in ("x", "P"):  # the combined estimate is the core's to write
         await tb.put(name, np.zeros(tb.layout[name].size), expect=AxiResp.SLVERR)
     assert (await axi.write(tb.mems["z"]["offset"] + 1, b"\x12")).resp == AxiResp.SLVERR

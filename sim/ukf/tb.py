@@ -282,6 +282,18 @@ def AugmentedUKF_ref(p, x0, P0, Q, R):
     return AugmentedUKF(p.n, p.nw, p.nv, p.m, f, h, p.w0, x0, P0, Q, R)
 
 
+async def holes(tb):
+    """Between the registers and the buffer, and past the buffer's end: SLVERR, reads 0; a
+    write of the read-only ID: SLVERR."""
+    axi = tb.axi
+    last = max(mm["offset"] + mm["shape"][0] * mm["shape"][1] * 4 * tb.words for mm in tb.mems.values())
+    for addr in (0x18, tb.manifest["bus"]["size"] // 2 - 4, last):
+        got = await axi.read(addr, 4)
+        assert (got.resp, got.data) == (AxiResp.SLVERR, bytes(4)), hex(addr)
+        assert (await axi.write(addr, b"\xff" * 4)).resp == AxiResp.SLVERR, hex(addr)
+    assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
+
+
 async def wait_idle(tb):
     busy = tb.field("STATUS", "busy")["lsb"]
     while (await tb.read_reg("STATUS")) >> busy & 1:
@@ -295,14 +307,8 @@ async def errors(dut):
     tb = await setup(dut)
     p = tb.params
     axi = tb.axi
-    # holes: between the registers and the buffer, and past the buffer's end
-    last = max(mm["offset"] + mm["shape"][0] * mm["shape"][1] * 4 * tb.words for mm in tb.mems.values())
-    for addr in (0x18, tb.manifest["bus"]["size"] // 2 - 4, last):
-        got = await axi.read(addr, 4)
-        assert (got.resp, got.data) == (AxiResp.SLVERR, bytes(4)), hex(addr)
-        assert (await axi.write(addr, b"\xff" * 4)).resp == AxiResp.SLVERR, hex(addr)
-    # read-only: ID and sigma_points
-    assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
+    await holes(tb)
+    # read-only: sigma_points (and ID, in holes)
     await tb.put("sigma_points", np.zeros((p.N, p.M)), expect=AxiResp.SLVERR)
     # a partial strobe on the buffer is refused (whole words only)
     x = tb.mems["x"]["offset"]
