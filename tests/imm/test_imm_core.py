@@ -80,11 +80,12 @@ def test_cocotb(rtl, sim, tests):
     run_ukf(sim, rtl, "imm_small", tests, tests[0], module=TB)
 
 
-#: More configurations, one Verilator build each: the slides' scenario size (R = 5, n = 6,
-#: d = 2: the default core) at P = 1; in ``make test-full`` P = 4, d = 3 (the Schur graph's
-#: odd split) in binary64, and binary16.
+#: More configurations, one Verilator build each, in ``make test-full`` (the default core's
+#: build alone takes about two minutes): the slides' scenario size (R = 5, n = 6, d = 2: the
+#: default core) at P = 1 and 4, d = 3 (the Schur graph's odd split) in binary64, and
+#: binary16. (``make plots`` and the drift test run the default size at P = 4 too.)
 CONFIGURATIONS = [
-    pytest.param([], id="default"),
+    pytest.param([], id="default", marks=pytest.mark.full),
     pytest.param(["--pes", "4"], id="p4", marks=pytest.mark.full),
     pytest.param(["--models", "2", "--states", "3", "--measurements", "3", "--format", "binary64"],
                  id="d3_binary64", marks=pytest.mark.full),
