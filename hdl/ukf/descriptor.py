@@ -20,7 +20,7 @@ def _docs() -> dict[str, Doc]:
                         "their area; sig_gen takes longer) or pipelined (one operation a cycle); by default "
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
         "banks": Doc("dual-port banks of the operand memory: more banks, fewer port conflicts and a larger "
-                     "crossbar; by default 2P up to P = 2, P above", "", "an integer in 2..2M"),
+                     "crossbar; by default 2P up to P = 2, P from 3 to 8, 8 above", "", "an integer in 2..2M"),
         "format": engine_docs()["format"],
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
         **{k: v for k, v in engine_docs().items() if k != "format"},
