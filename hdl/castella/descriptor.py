@@ -48,6 +48,11 @@ def _build(params):
     return Castella(params)
 
 
+def _smoke(params, manifest):
+    from kfgen.sim.castella.smoke import smoke_plan
+    return smoke_plan(params, manifest)
+
+
 CORE = CoreDescriptor(
     name="castella",
     summary="adaptive two-state (range, velocity) tracker with manoeuvre detection, many tracks",
@@ -60,4 +65,5 @@ CORE = CoreDescriptor(
                         "built_constants": p.built_constants},
     examples=({}, {"tracks": 8, "name": "castella8"}),
     bench="kfgen.gen.bench_castella",
+    smoke=_smoke,
 )

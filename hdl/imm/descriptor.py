@@ -68,6 +68,12 @@ def _waivers(params) -> str:
     return engine_waivers(params)
 
 
+def _smoke(params, manifest):
+    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
+    from kfgen.gen.smoke import id_register_reads
+    return id_register_reads(manifest)
+
+
 CORE = CoreDescriptor(
     name="imm",
     summary="interacting multiple model filter (R Kalman filters, mixing and combination) on P float PEs "
@@ -81,4 +87,5 @@ CORE = CoreDescriptor(
     documents=_documents,
     waivers=_waivers,
     bench="kfgen.gen.bench_imm",
+    smoke=_smoke,
 )

@@ -98,6 +98,12 @@ def _from_app(spec: str) -> dict:
     return load_app(spec).core_parameters()
 
 
+def _smoke(params, manifest):
+    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
+    from kfgen.gen.smoke import id_register_reads
+    return id_register_reads(manifest)
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -111,4 +117,5 @@ CORE = CoreDescriptor(
     waivers=_waivers,
     app=_from_app,
     bench="kfgen.gen.bench_ukf",
+    smoke=_smoke,
 )

@@ -175,7 +175,9 @@ def default_out(tmp_path_factory):
 
 def test_prints_paths_written(default_out):
     out, proc = default_out
-    assert proc.stdout.splitlines() == [str(out / f"castella.{ext}") for ext in ("v", "vlt", "json")]
+    assert proc.stdout.splitlines() == [str(out / name) for name in (
+        "castella.v", "castella.vlt", "castella.json", "castella_tb.v", "castella.xdc", "castella.sdc",
+        "castella.core")]
     assert proc.stderr == ""
 
 
@@ -193,14 +195,15 @@ def test_deterministic(tmp_path, default_out):
     first, _ = default_out
     second = tmp_path / "elsewhere" / "deeper"
     kfgen("castella", "-o", second)
-    for ext in ("v", "vlt", "json"):
-        a, b = (first / f"castella.{ext}").read_bytes(), (second / f"castella.{ext}").read_bytes()
-        assert a == b, f"castella.{ext} differs between two runs"
+    for name in ("castella.v", "castella.vlt", "castella.json", "castella.core", "castella.xdc", "castella.sdc",
+                 "castella_tb.v"):
+        a, b = (first / name).read_bytes(), (second / name).read_bytes()
+        assert a == b, f"{name} differs between two runs"
         text = a.decode()
         for leak in (str(first), str(tmp_path), str(tmp_path.parent.parent), "/home/", "/tmp/", "/root/",
                      "/usr/", "site-packages"):
-            assert leak not in text, f"castella.{ext} contains {leak!r}"
-        assert not re.search(r"\b20\d\d-\d\d-\d\d\b|\b\d\d:\d\d:\d\d\b", text), f"castella.{ext} has a timestamp"
+            assert leak not in text, f"{name} contains {leak!r}"
+        assert not re.search(r"\b20\d\d-\d\d-\d\d\b|\b\d\d:\d\d:\d\d\b", text), f"{name} has a timestamp"
         assert "(* src" not in text
 
 

@@ -29,7 +29,7 @@ def rtl(build_root):
 
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}.*"))
-    assert names == sorted(f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md"))
+    assert names == sorted(f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc"))
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = UkfParams(**man["parameters"])
     assert (params.n, params.m, params.nw, params.nv, params.w0) == (2, 1, 1, 1, 0.25)
