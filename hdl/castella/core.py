@@ -28,7 +28,7 @@ from amaranth.lib.wiring import In, Out
 
 from ..arith.divide import gain_divider
 from ..arith.fixed import fmt_shape, rsr, saturate
-from ..arith.multiply import shift_add_multiply
+from ..arith.multiply import dsp_multiply, shift_add_multiply
 from ..arith.pipeline import Pipeline, Staged
 from .params import ALPHA_FRAC, QSLOPE_SHIFT, RSQRT_INDEX_BITS, RSQRT_WIDTH, CastellaParams
 
@@ -185,13 +185,15 @@ class Castella(wiring.Component):
 
         # U2 / U3: updates, eqs. (6) and (7)
         r = pl.reg("resid", lambda y, x: y - x, s["y"], x1p)
-        # Gain products in LUTs (shift and add): faster than an unregistered ECP5 DSP.
+        # Gain products in LUTs (shift and add): faster than an unregistered ECP5 DSP; or, with
+        # multipliers="dsp", in Xilinx DSP48E1 blocks with their registers (same values, latency).
         # (1 - K1) P is formed as P - K1 P, so every product has the 8-bit gain as selector.
-        m_k1r = shift_add_multiply(pl, "m_k1r", k1, r)
-        m_k2r = shift_add_multiply(pl, "m_k2r", k2, r)
-        m_k2p = shift_add_multiply(pl, "m_k2p", k2, pp12)
-        m_k1p11 = shift_add_multiply(pl, "m_k1p11", k1, pp11)
-        m_k1p12 = shift_add_multiply(pl, "m_k1p12", k1, pp12)
+        multiply = dsp_multiply if p.multipliers == "dsp" else shift_add_multiply
+        m_k1r = multiply(pl, "m_k1r", k1, r)
+        m_k2r = multiply(pl, "m_k2r", k2, r)
+        m_k2p = multiply(pl, "m_k2p", k2, pp12)
+        m_k1p11 = multiply(pl, "m_k1p11", k1, pp11)
+        m_k1p12 = multiply(pl, "m_k1p12", k1, pp12)
         m_p11 = pl.reg("m_p11", lambda x, k: (x << gw) - k, pp11, m_k1p11)
         m_p12 = pl.reg("m_p12", lambda x, k: (x << gw) - k, pp12, m_k1p12)
         h_k1r = pl.reg("h_k1r", lambda x: rsr(x, gw), m_k1r)
@@ -211,7 +213,7 @@ class Castella(wiring.Component):
         # U4: manoeuvre detector, eqs. (8)-(10)
         idx = pl.comb("rsq_idx", lambda x: x[p.data_width - RSQRT_INDEX_BITS:], pp11)
         rsq = rom("rsqrt_lut", p.rsqrt_table, idx, RSQRT_WIDTH)
-        m_zn = shift_add_multiply(pl, "m_zn", rsq, r)
+        m_zn = multiply(pl, "m_zn", rsq, r)
         h_zn = pl.reg("h_zn", lambda x: rsr(x, fr.frac + p.rsqrt_frac - fz.frac), m_zn)
         zn = sat_reg("zn", h_zn, fz, flagged=False)  # z saturating is harmless: not flagged
         a = p.alpha_code
@@ -225,7 +227,7 @@ class Castella(wiring.Component):
         # U5: q variation, the straight line of Figure 2
         dz = pl.reg("dz", lambda x: x - p.z1_code, zabs)
         dpos = pl.reg("dpos", lambda d: Mux(d > 0, d, 0)[:fz.width], dz)
-        m_dq = shift_add_multiply(pl, "m_dq", dpos, Staged(C(p.q_slope), 0))
+        m_dq = multiply(pl, "m_dq", dpos, Staged(C(p.q_slope), 0))
         h_dq = pl.reg("h_dq", lambda x: rsr(x, QSLOPE_SHIFT), m_dq)
         qn = pl.reg("qn", lambda d, h: Mux(d <= 0, 0, Mux(h > p.q_max, p.q_max, h)),
                     dz, h_dq, shape=unsigned(p.q_width))

@@ -38,6 +38,10 @@ def _docs() -> dict[str, Doc]:
                   f"0 < z1 < z2; built as the nearest multiple of {step}, which the header and manifest record"),
         "z2": Doc("filtered normalised residual at which q reaches q2", "sigma",
                   f"z1 < z2 <= {Z_MAX}, at least {step} above z1; built as the nearest multiple of {step}"),
+        "multipliers": Doc("how the gain and residual products are built: lut, shift-and-add trees in LUTs "
+                           "(fast on ECP5, whose DSP blocks Yosys maps without their registers); dsp, products "
+                           "that a Xilinx 7 series DSP48E1 takes with its registers (fewer LUTs); bit-exact and "
+                           "the same latency either way", "", "lut or dsp (any case)"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }

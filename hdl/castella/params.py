@@ -85,6 +85,11 @@ def _frac_for(width: int, max_value: float, signed: bool) -> int:
     return width - int_bits - (1 if signed else 0)
 
 
+#: How the gain products are built: shift-and-add trees in LUTs (fast on ECP5, whose DSP
+#: blocks Yosys maps without their registers), or ``*`` between registers that a Xilinx 7
+#: series DSP48E1 absorbs. The same values and latency either way.
+MULTIPLIERS = ("lut", "dsp")
+
 # Allowed ranges: (low, high) inclusive, the one place the CLI and the classes read them.
 RANGES = {
     "tracks": (1, 4096),
@@ -117,6 +122,7 @@ class CastellaParams:
     q2: float = 200.0
     z1: float = 1.132
     z2: float = 1.693
+    multipliers: str = "lut"
     name: str = "castella"
 
     # ------------------------------------------------------------------ validation
@@ -149,6 +155,10 @@ class CastellaParams:
             raise ParamError("z1", f"must satisfy 0 < z1 < z2 <= {Z_MAX}, got z1={self.z1!r} z2={self.z2!r}")
         if self.z2_code - self.z1_code < 1:
             raise ParamError("z2", f"must exceed z1 by at least {2 ** -Z_FRAC}")
+        multipliers = self.multipliers.strip().lower() if isinstance(self.multipliers, str) else self.multipliers
+        if multipliers not in MULTIPLIERS:
+            raise ParamError("multipliers", f"must be one of {', '.join(MULTIPLIERS)}, not {self.multipliers!r}")
+        object.__setattr__(self, "multipliers", multipliers)
         check_name(self.name)
         # The datapath holds alpha, z1 and z2 as multiples of 2**-8: record the values built,
         # so the header, the manifest and the models say what the hardware does, and every

@@ -24,10 +24,19 @@ CONFIGS = {
     "castella_w20": dict(tracks=3, data_width=20, gain_width=10, q_width=5, period=0.5, sigma_r=50.0),
     "castella64": dict(tracks=64),
     "castella100": dict(tracks=100),
+    # --multipliers dsp: the gain products as `*` for Xilinx DSP48E1 blocks, bit-exact
+    "castella8_dsp": dict(tracks=8, multipliers="dsp"),
+    "castella_w20_dsp": dict(tracks=3, data_width=20, gain_width=10, q_width=5, period=0.5, sigma_r=50.0,
+                             multipliers="dsp"),
 }
 
 _CLI = {"tracks": "--tracks", "data_width": "--data-width", "gain_width": "--gain-width",
-        "q_width": "--q-width", "period": "--period", "sigma_r": "--sigma-r"}
+        "q_width": "--q-width", "period": "--period", "sigma_r": "--sigma-r", "multipliers": "--multipliers"}
+
+
+def _args(top):
+    """``kfgen castella ...`` options of a configuration in CONFIGS."""
+    return ["castella", *(x for k, v in CONFIGS[top].items() for x in (_CLI[k], v))]
 
 
 # Tests of one core share its generated Verilog (this module's fixture) and its Verilator
@@ -39,10 +48,7 @@ def core(build_root):
     def get(top):
         if top not in made:
             out = build_root / top
-            args = ["castella", "--name", top, "-o", out]
-            for k, v in CONFIGS[top].items():
-                args += [_CLI[k], v]
-            kfgen(*args)
+            kfgen(*_args(top), "--name", top, "-o", out)
             params = CastellaParams(name=top, **CONFIGS[top])
             made[top] = (out, params, json.loads((out / f"{top}.json").read_text()))
         return made[top]
@@ -178,6 +184,25 @@ def test_many_tracks_random_order(core):
     tids, ys, rs = scenarios.interleave(codes, rng, "random", restart_at=[(0, 20)])
     tids = np.where(tids == 5, 99, tids)  # the highest track index too
     run_checked(out, p, man, tids, ys, rs, gap=0.2, stall=0.2, seed=8, name="many")
+
+
+@pytest.mark.parametrize("top, lut", [("castella8_dsp", "castella8"),
+                                      pytest.param("castella_w20_dsp", "castella_w20", marks=pytest.mark.full)])
+def test_dsp_multipliers_bit_exact(core, top, lut):
+    """--multipliers dsp: every output word as the model's (so as the LUT core's), with gaps,
+    backpressure and restarts, and the same latency and intervals in the manifest."""
+    out, p, man = core(top)
+    assert p.multipliers == "dsp"
+    ref = out.parent / f"{top}_lut"
+    kfgen(*_args(lut), "--name", lut, "-o", ref)
+    lut_man = json.loads((ref / f"{lut}.json").read_text())
+    for key in ("latency_cycles", "initiation_interval", "track_interval_cycles"):
+        assert man[key] == lut_man[key], key
+    rng = np.random.default_rng(51)
+    codes = scenario_codes(p, p.tracks, seed=51, which=("scenario1",))[:, :80]
+    tids, ys, rs = scenarios.interleave(codes, rng, "random", restart_at=[(1, 40)])
+    _, cols = run_checked(out, p, man, tids, ys, rs, gap=0.2, stall=0.2, seed=9, name="dsp")
+    assert set(cols["phase"]) == {0, 1, 2}
 
 
 def test_non_default_widths(core):
