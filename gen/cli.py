@@ -386,11 +386,13 @@ def run(argv: list[str] | None = None) -> int:
     core = discover()[args.core]
     params = _params(core, args)
     flow = _flow(args)
+    from .api import generate_core
+
     try:
-        files = generate(core, params, flow)
+        made = generate_core(core.name, params, flow=flow)
     except ParamError as exc:
         raise UsageError(option(exc.param), exc.message) from None
-    for target in write_files(args.output, files):
+    for target in made.write(args.output):
         print(target)
     return 0
 

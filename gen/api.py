@@ -1,0 +1,117 @@
+"""kfgen from Python: generate a core without a shell, or take its Amaranth component.
+
+    >>> from kfgen.gen.api import generate_core
+    >>> core = generate_core("castella", tracks=8, name="trk")
+    >>> core.verilog[:60]              # the Verilog text of module trk
+    >>> core.manifest["latency_cycles"]
+    >>> sorted(core.files)             # every file `kfgen castella ... -o DIR` writes, by name
+    >>> core.write("out/trk")          # and those files written (all or nothing)
+
+Parameters are the keyword arguments of the core's parameter dataclass (the command line's
+options with ``_`` for ``-``: ``sigma_r=50.0``), or an instance of it; a bad value raises
+:class:`~kfgen.hdl.describe.ParamError` (a ``ValueError``) naming the parameter and what is
+allowed. The command line is a layer over this module: it turns its options (or a TOML file)
+into the same parameters and writes :attr:`GeneratedCore.files`.
+
+:func:`component` gives the Amaranth ``wiring.Component`` itself, for a design of one's own
+that instantiates it (``m.submodules.trk = component("castella", tracks=8)``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from kfgen.hdl.describe import CoreDescriptor, ParamError
+
+from .cores import discover
+from .fusesoc import FlowOptions
+
+__all__ = ["GeneratedCore", "generate_core", "component", "cores", "FlowOptions", "ParamError"]
+
+
+def cores() -> dict[str, str]:
+    """Name -> one-line summary of every core kfgen generates."""
+    return {name: core.summary for name, core in discover().items()}
+
+
+def _core(name: str) -> CoreDescriptor:
+    found = discover().get(name)
+    if found is None:
+        raise ParamError("core", f"must be one of {', '.join(discover())}, not {name!r}")
+    return found
+
+
+def _params(core: CoreDescriptor, params, parameters: Mapping):
+    if params is None:
+        fields = list(core.params.__dataclass_fields__)
+        for key in parameters:
+            if key not in fields:
+                raise ParamError(key, f"is not a parameter of the {core.name} core; they are {', '.join(fields)}")
+        return core.params(**parameters)
+    if parameters or not isinstance(params, core.params):
+        raise TypeError(f"give the {core.name} core's parameters as keywords or as one {core.params.__name__}, "
+                        "not both")
+    return params
+
+
+@dataclass(frozen=True)
+class GeneratedCore:
+    """What :func:`generate_core` made: the files by name, and views of the main ones."""
+
+    core: str
+    params: object
+    files: Mapping[str, str]
+
+    @property
+    def top(self) -> str:
+        return self.params.name
+
+    @property
+    def verilog(self) -> str:
+        """The text of ``TOP.v``."""
+        return self.files[f"{self.top}.v"]
+
+    @property
+    def manifest(self) -> dict:
+        """``TOP.json`` as a dict: ports, fields, latency, parameters."""
+        return json.loads(self.files[f"{self.top}.json"])
+
+    def write(self, directory) -> list[Path]:
+        """Write every file into ``directory`` (created if missing), all or nothing; the paths."""
+        from .cli import write_files
+        return write_files(directory, self.files)
+
+
+def generate_core(core: str, params=None, /, *, flow: FlowOptions | None = None, **parameters) -> GeneratedCore:
+    """Generate ``core`` (``"castella"``, ``"fpu"``, ``"ukf"``, ...) as ``kfgen CORE`` does.
+
+    Parameters
+    ----------
+    core : str
+        A name from :func:`cores`.
+    params : the core's parameter dataclass, optional
+        Instead of keyword ``parameters``.
+    flow : FlowOptions, optional
+        Clock and parts of the vendor-flow files (``TOP.core``, ``TOP.xdc``, ``TOP.sdc``).
+    **parameters
+        The core's parameters; the rest keep their defaults.
+
+    Raises
+    ------
+    ParamError
+        An unknown core or a bad parameter (``.param`` names it, ``.message`` says what is allowed).
+    """
+    from .cli import generate
+
+    desc = _core(core)
+    chosen = _params(desc, params, parameters)
+    return GeneratedCore(desc.name, chosen, generate(desc, chosen, flow))
+
+
+def component(core: str, params=None, /, **parameters):
+    """The Amaranth ``wiring.Component`` of ``core`` with these parameters (not elaborated)."""
+    desc = _core(core)
+    return desc.build(_params(desc, params, parameters))
