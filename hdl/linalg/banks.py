@@ -64,6 +64,14 @@ class BankedMemory(wiring.Component):
     share a port). The scheduler never asks more of a bank than its two ports; lanes beyond
     them get nothing (a read returns another port's word, a write is lost).
 
+    A read and a write of one word in one cycle (on the two ports of its bank) read an
+    undefined word, and the RAM says so to synthesis (``no_rw_check``): Xilinx's block RAM
+    returns the old word across ports, but Lattice ECP5's (DP16KD) does not, and a RAM that
+    promised it would be built from flip-flops there. No lane ever takes such a word: the
+    scheduler writes a word only after its last read and reads it from the cycle after the
+    write on, and the bus's read in such a cycle is not served (``rd_ok`` low; it retries,
+    and reads the new word). Simulators return the old word there.
+
     Parameters
     ----------
     geometry : microcode.Geometry
@@ -81,13 +89,12 @@ class BankedMemory(wiring.Component):
     Members
     -------
     rd : In(ReadLane).array(reads)
-        Read latency 1: the word addressed in one cycle is on ``data`` the next. A read and a
-        write of the same word in one cycle read the old word.
+        Read latency 1: the word addressed in one cycle is on ``data`` the next.
     wr : In(WriteLane).array(writes)
     rd_ok : Out(1)
         The last read lane (the bus's, lowest priority) is served this cycle: a port is free
-        for it or already reads its word. When it is not, its ``data`` next cycle is some
-        other word, and the reader retries.
+        for it or already reads its word, and no lane writes its word. When it is not, its
+        ``data`` next cycle is some other word, and the reader retries.
     """
 
     def __init__(self, geometry, width, init, reads, writes, groups=None):
@@ -124,8 +131,10 @@ class BankedMemory(wiring.Component):
         served = []
         for b in range(g.banks):
             words = self._init[b::g.banks]
+            # no_rw_check: a read and a write of one word in a cycle read an undefined word
+            # (a true dual-port block RAM on either vendor; see the class docstring)
             mem = memory.Memory(shape=unsigned(self._width), depth=g.rows,
-                                init=words + [0] * (g.rows - len(words)))
+                                init=words + [0] * (g.rows - len(words)), attrs={"no_rw_check": 1})
             m.submodules[f"bank{b}"] = mem
             hits = _signals(m, f"b{b}_hit", [lane.en & (lane.addr.bank == b) for lane, _ in order])
             ports = []  # (hit, row, write, grants) of port 0, then port 1
@@ -169,7 +178,9 @@ class BankedMemory(wiring.Component):
                 if not w:
                     with m.If(h):
                         m.d.sync += selects[i][1].eq(~s)
-        m.d.comb += self.rd_ok.eq(Cat(served).any())
+        bus = rd[-1].addr.as_value()
+        written = Cat(w.en & (w.addr.as_value() == bus) for w in wr).any()  # undefined: retry
+        m.d.comb += self.rd_ok.eq(Cat(served).any() & ~written)
         # every index covered: Verilator -Wall wants complete cases
         port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - g.banks))
         for lane, (bank, port) in zip(rd, selects):

@@ -51,12 +51,13 @@ class Engine(wiring.Component):
     root's IEEE flags NX UF OF DZ NV), clear at the next start and are otherwise held.
 
     The bus port reads and writes the memory, one read and one write a cycle: ``mem_rdata``
-    holds the word at ``mem_raddr`` of the previous cycle (read latency 1; a read and a
-    write of one word in one cycle read the old word) when ``mem_rok`` was high with it. The
-    engine's lanes come first: while busy a bus read is served only where the step leaves
-    its bank a port (``mem_rok``; else the reader retries), and a bus write may be lost or
-    corrupt the step (the bus front end refuses them). Constants are in the memory from
-    configuration; nothing resets the memory.
+    holds the word at ``mem_raddr`` of the previous cycle (read latency 1) when ``mem_rok``
+    was high with it. The engine's lanes come first: while busy a bus read is served only
+    where the step leaves its bank a port (``mem_rok``; else the reader retries), and a bus
+    write may be lost or corrupt the step (the bus front end refuses them). A bus read of a
+    word written in the same cycle (by the step or the bus) is not served either: the block
+    RAM leaves that word undefined, and the retry reads the new word. Constants are in the
+    memory from configuration; nothing resets the memory.
 
     Parameters
     ----------

@@ -12,10 +12,11 @@ field position used here. Bus rules beyond the map's (documented in the map and 
 generated ``TOP.md``):
 
 - **Reads are always answered.** While busy, a buffer read waits for a cycle in which the
-  step leaves its memory bank a port (the engine's ``mem_rok``; the R channel then simply
-  stalls, as AXI allows) and returns the word as it is then: a region the step does not
-  write (``Q``, ``R``, ``z`` in ``sig_gen``, say) reads as written, one it writes reads
-  some state of the step. Register reads (``STATUS`` above all) never wait.
+  step leaves its memory bank a port and does not write the word (the engine's ``mem_rok``;
+  the R channel then simply stalls, as AXI allows) and returns the word as it is then: a
+  region the step does not write (``Q``, ``R``, ``z`` in ``sig_gen``, say) reads as
+  written, one it writes reads some state of the step. Register reads (``STATUS`` above
+  all) never wait.
 - **Writes while busy**: buffer writes answer SLVERR and change nothing; the registers stay
   writable (``CTRL.reset`` stops a step, ``STATUS`` bits clear, ``IRQ_ENABLE`` changes). A
   write of ``CTRL`` with ``start`` set while busy answers SLVERR, changes nothing and sets

@@ -62,6 +62,9 @@ def check_schedule(s):
             writes[a % mc.banks, p.write] += 1
     for key in set(ports) | set(writes):
         assert len(ports.get(key, ())) + writes.get(key, 0) <= mc.ports, key
+    # no word read in the cycle it is written: the block RAM's word would be undefined there
+    written = {(p.write, a) for i, p in enumerate(pl) for a in ops[i].dst}
+    assert not written & {r for rs in reads for r in rs}
     assert s.cycles == max(p.write for p in pl) + 1
 
 
