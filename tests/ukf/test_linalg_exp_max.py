@@ -1,3 +1,5 @@
+# amaranth: UnusedElaboratable=no
+# (FloatExp is made here only to read its latency.)
 """The engine's units added for the IMM: the exponential and the comparator, in Amaranth's
 simulator against the golden executor word for word (special values included), and the
 golden maximum against Python's float order."""
