@@ -6,8 +6,9 @@ cycle given as a delta from the previous instruction's start. An FMA segment nam
 two address generators, ``a_k = a0 + k sa`` and ``b_k = b0 + k sb``, issued every ``Lf``
 cycles for ``count`` terms; the first segment of an accumulation is marked ``first`` (its
 addend is ``init``, or ``-0`` without one, instead of the PE's feedback) and carries
-``init``, the last its destination(s) and check. A division, square root, copy, exponential or maximum is one instruction. The
-sequencer keeps one segment generator per PE interleave slot (``Lf`` per PE).
+``init``, the last its destination(s) and check. A division, square root, copy,
+exponential or maximum is one instruction. The sequencer keeps one segment generator per PE
+interleave slot (``Lf`` per PE).
 
 Field widths are the fewest bits that hold every value of the program set (the three UKF
 steps share one store), so the size is exact for this configuration.

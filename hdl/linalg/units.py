@@ -27,11 +27,17 @@ def faults(fmt, y, check):
     """``(pivot, nan)`` of result ``y`` under check code ``check`` (1 pivot, 2 finite), as
     :func:`kfgen.sim.linalg.exec.run` decides them: a pivot is bad when NaN, negative
     (``-0`` included) or ``+0``; a checked result when NaN or infinite."""
-    w, f = fmt.width, fmt.frac_bits
-    special = y[f:w - 1] == (1 << fmt.exp_bits) - 1
-    nan = special & (y[:f] != 0)
+    w = fmt.width
+    special, nan = _special(fmt, y)
     pivot = (check == 1) & (nan | y[w - 1] | (y[:w - 1] == 0))
     return pivot, (check == 2) & special
+
+
+def _special(fmt, y):
+    """``(NaN or infinity, NaN)`` of the word ``y``."""
+    w, f = fmt.width, fmt.frac_bits
+    special = y[f:w - 1] == (1 << fmt.exp_bits) - 1
+    return special, special & (y[:f] != 0)
 
 
 def _advance(g, m, addr, stride):
@@ -205,15 +211,12 @@ def max_word(fmt, a, b):
     value, ``+0`` above ``-0``, ``a`` when equal, the canonical NaN for a NaN operand), and
     whether an operand was a NaN: sign-magnitude words compared as integers whose negative
     half is reversed."""
-    w, f = fmt.width, fmt.frac_bits
+    w = fmt.width
 
     def key(x):  # monotonic in the value: negatives' magnitudes inverted, positives above
         return Mux(x[w - 1], ~x, x | Const(fmt.sign_mask, w))
 
-    def isnan(x):
-        return (x[f:w - 1] == (1 << fmt.exp_bits) - 1) & (x[:f] != 0)
-
-    nan = isnan(a) | isnan(b)
+    nan = _special(fmt, a)[1] | _special(fmt, b)[1]
     y = Mux(nan, fmt.canonical_nan, Mux(key(b)[:w] > key(a)[:w], b, a))
     return y, nan
 

@@ -76,8 +76,9 @@ class Backend(wiring.Component):
         self._params, self._engine = params, engine
         self._map = ukf_map(params) if rmap is None else rmap
         ctrl = self._map["CTRL"]
-        if any(f.name == "step" for f in ctrl.fields):
-            if engine.step_names != tuple(v.name for v in ctrl.field("step").values):
+        self._f_step = next((f for f in ctrl.fields if f.name == "step"), None)
+        if self._f_step is not None:
+            if engine.step_names != tuple(v.name for v in self._f_step.values):
                 raise ValueError("CTRL.step's values must name the engine's steps in its order")
         elif len(engine.step_names) != 1:
             raise ValueError("an engine of several steps needs a CTRL.step field")
@@ -95,8 +96,7 @@ class Backend(wiring.Component):
                      for mem in rmap.memories if mem.access == "ro"]  # (first element, elements)
         regs = {r.name: r.offset // 4 for r in rmap.registers}
         ctrl, status = rmap["CTRL"], rmap["STATUS"]
-        f_start, f_reset = ctrl.field("start"), ctrl.field("reset")
-        f_step = ctrl.field("step") if any(f.name == "step" for f in ctrl.fields) else None
+        f_start, f_reset, f_step = ctrl.field("start"), ctrl.field("reset"), self._f_step
         f_busy = status.field("busy")
         lsb = {e: status.field(e).lsb for e in _EVENTS}
 

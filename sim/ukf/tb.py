@@ -67,6 +67,7 @@ class TB:
         self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
         self.gold = self.layout.initial_memory()
         self.regs = {r["name"]: r for r in self.manifest["registers"]}
+        self.has_step = any(fd["name"] == "step" for fd in self.regs["CTRL"]["fields"])  # the IMM's has none
         self.mems = {mm["name"]: mm for mm in self.manifest["memories"]}
         self.words = self.mems["x"]["words_per_element"]
         self.rng = np.random.default_rng(int(os.environ.get("KFGEN_TB_SEED", "1")))
@@ -175,8 +176,7 @@ class TB:
 
     # ------------------------------------------------------------- steps
     async def start(self, step):
-        has_step = any(fd["name"] == "step" for fd in self.regs["CTRL"]["fields"])
-        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, **({"step": step} if has_step else {})))
+        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, **({"step": step} if self.has_step else {})))
         return resp
 
     async def step(self, name):
