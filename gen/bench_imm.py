@@ -30,6 +30,7 @@ from pathlib import Path
 
 from kfgen.hdl.imm.descriptor import CORE
 from kfgen.hdl.imm.params import ImmParams
+from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.sim.toolchain import ToolMissing
 
 from .bench_ukf import BRAM36_BITS, _timed
@@ -93,8 +94,9 @@ def render(rows: list[dict], args, seconds: dict) -> str:
     e = rows[0]["engine"]
     parts = ["IMM iteration cycles (n = 6, d = 2, binary32):", "", cycles_table(rows), "",
              f"* Unit latencies: FMA {e['fma_latency']}, divider {e['div_latency']}, square root {e['sqrt_latency']}, "
-             f"exp {e['exp_latency']} cycles; operand read 1. The cycles include 2 for the program store's first "
-             "fetch and the done register; the bounds do not.",
+             f"exp {e['exp_latency']} cycles; operand read {e['read_latency']}. The cycles include "
+             f"{OVERHEAD} per iteration for the start register, the program store's fetch lead, the last "
+             "write's lane register and the done register; the bounds do not.",
              *(f"* R = {r['R']}, P = {r['pes']}: the testbench failed: {r['sim_error']}" for r in rows
                if r.get("sim_error")), ""]
     if any("lut" in r or r.get("xilinx_error") for r in rows):

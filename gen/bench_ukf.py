@@ -32,6 +32,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import Machine, chain_bound
 from kfgen.hdl.ukf.descriptor import CORE
 from kfgen.hdl.ukf.params import UkfParams
@@ -62,7 +63,8 @@ BRAM36_BITS = 36 * 1024
 def bounds(params: UkfParams, engine: dict) -> dict:
     """Per step, the multiply-adds and the dependency-chain bound of ``params``' programs with
     the unit latencies of the manifest's ``engine`` block; both do not depend on P."""
-    mc = Machine(1, engine["fma_latency"], engine["div_latency"], engine["sqrt_latency"])
+    mc = Machine(1, engine["fma_latency"], engine["div_latency"], engine["sqrt_latency"],
+                 read_latency=engine["read_latency"])
     steps = programs(params).steps
     return {"fmas": {k: steps[k].fma_count for k in STEPS}, "chain": {k: chain_bound(steps[k], mc) for k in STEPS}}
 
@@ -209,7 +211,8 @@ def render(rows: list[dict], bound: dict, engine: dict, args, seconds: dict) -> 
         "manifest's):" if not args.no_sim else "Cycles per step and iteration, from the manifest (not simulated):",
         "", cycles_table(rows, bound, "manifest_cycles" if args.no_sim else "measured"), "",
         f"* Unit latencies the chain bound assumes (the manifest's engine block): FMA {engine['fma_latency']}, "
-        f"divider {engine['div_latency']}, square root {engine['sqrt_latency']} cycles; operand read 1.",
+        f"divider {engine['div_latency']}, square root {engine['sqrt_latency']} cycles; operand read "
+        f"{engine['read_latency']} (lane register, block RAM, data register).",
         *(f"* P = {r['pes']}: {r['div_sqrt']} divider and square root (a new operation every "
           f"{r['engine']['div_interval']} and {r['engine']['sqrt_interval']} cycles), {r['engine']['banks']} memory "
           "banks." for r in rows),
@@ -217,8 +220,8 @@ def render(rows: list[dict], bound: dict, engine: dict, args, seconds: dict) -> 
         + f" ({fmt(sum(bound['fmas'].values()))} an iteration); chain bound: "
         + ", ".join(f"{k} {fmt(v)}" for k, v in bound["chain"].items())
         + f" ({fmt(sum(bound['chain'].values()))}).",
-        "* The core's cycles include 2 a step (the first program-store fetch and the done register); the "
-        "bounds do not.",
+        f"* The core's cycles include {OVERHEAD} a step (the start register, the program store's fetch lead, "
+        "the last write's lane register and the done register); the bounds do not.",
         *(f"* P = {r['pes']}: the testbench failed: {r['sim_error']}" for r in rows if r.get("sim_error")),
         "",
     ]

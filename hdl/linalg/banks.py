@@ -3,7 +3,9 @@ lanes."""
 
 from __future__ import annotations
 
-from amaranth.hdl import Array, Cat, Module, Mux, Signal, unsigned
+from types import SimpleNamespace
+
+from amaranth.hdl import Array, C, Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -17,52 +19,48 @@ def addr_layout(geometry) -> data.StructLayout:
 
 
 class ReadLane(wiring.Signature):
-    """A reader's lane: ``en`` and ``addr`` in one cycle, ``data`` the next (read latency 1)."""
+    """A reader's lane: ``en``, ``addr`` and the memory ``port`` it uses in one cycle,
+    ``data`` a read latency later (:class:`BankedMemory`)."""
 
     def __init__(self, geometry, width):
-        super().__init__({"en": Out(1), "addr": Out(addr_layout(geometry)), "data": In(width)})
+        super().__init__({"en": Out(1), "addr": Out(addr_layout(geometry)), "port": Out(1),
+                          "data": In(width)})
 
 
 class WriteLane(wiring.Signature):
-    """A writer's lane: the word is written at the end of the cycle ``en`` is high."""
+    """A writer's lane: ``en``, ``addr``, the memory ``port`` and ``data`` in one cycle
+    (:class:`BankedMemory` says when the RAM takes it)."""
 
     def __init__(self, geometry, width):
-        super().__init__({"en": Out(1), "addr": Out(addr_layout(geometry)), "data": Out(width)})
+        super().__init__({"en": Out(1), "addr": Out(addr_layout(geometry)), "port": Out(1),
+                          "data": Out(width)})
 
 
-def _first(hits, values, default=0):
-    """The value of the first lane whose hit is set (priority to the lowest index)."""
-    v = default
-    for h, x in reversed(list(zip(hits, values))):
-        v = Mux(h, x, v)
-    return v
-
-
-def _signals(m, name, exprs):
-    """One signal per expression (so that each is built once, however often it is used)."""
-    sigs = [Signal(name=f"{name}{i}") for i in range(len(exprs))]
-    m.d.comb += [s.eq(e) for s, e in zip(sigs, exprs)]
-    return sigs
-
-
-def _prefix_or(m, bank, hits):
-    """For each lane, whether a lane before it hits."""
-    out = [Signal(name=f"b{bank}_prior{i}") for i in range(len(hits))]
-    for i, o in enumerate(out):
-        m.d.comb += o.eq(0 if i == 0 else out[i - 1] | hits[i - 1])
-    return out
+def _any(bits):
+    return Cat(*bits).any() if bits else C(0, 1)
 
 
 class BankedMemory(wiring.Component):
-    """Word ``a`` in bank ``a % banks`` at row ``a // banks``; each bank a RAM of two ports a
-    cycle, each port one read or one write (a true dual-port block RAM: a port's read and write
-    share its address).
+    """Word ``a`` in bank ``a % banks`` at row ``a // banks``; each bank a RAM of two ports
+    a cycle, each port one read or one write (a true dual-port block RAM: a port's read and
+    write share its address).
 
-    The crossbar gives a bank's port 0 to the first lane (in the order reads, then writes,
-    the last read and the last write lane lowest of all: the bus) that addresses it, and
-    port 1 to the next lane that is not a read of the word port 0 reads (reads of one word
-    share a port). The scheduler never asks more of a bank than its two ports; lanes beyond
-    them get nothing (a read returns another port's word, a write is lost).
+    **The engine's lanes** (every lane but the last read and the last write) name their
+    port: the scheduler assigned it (:mod:`.schedule`), so that no port is asked for two
+    things in a cycle, except reads of one word. The crossbar therefore has no arbitration:
+    a port's address is the OR of the addresses of the lanes that name it. It is pipelined:
+    a lane's request (``en``, ``addr``, ``port``, a write's ``data``) is registered, the
+    block RAM is read or written the next cycle, and a read's word is registered behind the
+    RAM: it is on the lane's ``data`` :data:`~.microcode.READ_LATENCY` (3) cycles after the
+    request; a write reaches the RAM one cycle after its request.
+
+    **The bus's lanes** (the last read and the last write) take a port that the engine's
+    lanes leave free in the RAM cycle: the write port 0, the read port 1, else port 0. The
+    bus's write is registered as the engine's lanes are (it reaches the RAM the next
+    cycle); a bus write whose port is taken then is lost (the bus front end refuses writes
+    while a step runs). The bus's read skips the register: it reaches the RAM in the cycle
+    of the request, and its word is on ``data`` the next cycle (read latency 1) when
+    ``rd_ok`` was high with the request.
 
     A read and a write of one word in one cycle (on the two ports of its bank) read an
     undefined word, and the RAM says so to synthesis (``no_rw_check``): Xilinx's block RAM
@@ -80,21 +78,23 @@ class BankedMemory(wiring.Component):
     init : list of int
         The memory's words at configuration (``geometry.size`` of them).
     reads, writes : int
-        Lanes; the last of each is the lowest priority.
+        Lanes; the last of each is the bus's.
     groups : list of int or None
         Per write lane, its data source: lanes of one group always carry the same word (a
-        unit's result and its mirror), so a port muxes groups, not lanes. ``None``: a group
-        per lane.
+        unit's result and its mirror), so the word is registered once and a port muxes
+        groups, not lanes. ``None``: a group per lane.
 
     Members
     -------
     rd : In(ReadLane).array(reads)
-        Read latency 1: the word addressed in one cycle is on ``data`` the next.
     wr : In(WriteLane).array(writes)
     rd_ok : Out(1)
-        The last read lane (the bus's, lowest priority) is served this cycle: a port is free
-        for it or already reads its word, and no lane writes its word. When it is not, its
-        ``data`` next cycle is some other word, and the reader retries.
+        The bus's read is served this cycle: a port of its bank is free of the engine's
+        lanes (and of the bus's write) and no lane writes its word in this RAM cycle. When
+        it is not, its ``data`` next cycle is some other word, and the reader retries.
+    flush : In(1)
+        The engine's requests registered this cycle are dropped (a soft reset: nothing more
+        is written).
     """
 
     def __init__(self, geometry, width, init, reads, writes, groups=None):
@@ -104,86 +104,102 @@ class BankedMemory(wiring.Component):
             raise ValueError(f"groups must name one group per write lane ({writes}), not {groups!r}")
         super().__init__({"rd": In(ReadLane(geometry, width)).array(reads),
                           "wr": In(WriteLane(geometry, width)).array(writes),
-                          "rd_ok": Out(1)})
+                          "rd_ok": Out(1), "flush": In(1)})
 
     def elaborate(self, platform):
         m = Module()
-        g = self._g
+        g, banks = self._g, self._g.banks
         rd, wr = list(self.rd), list(self.wr)
-        # (lane, is_write) by priority, the bus lanes last
-        order = [(r, False) for r in rd[:-1]] + [(w, True) for w in wr[:-1]] + \
-            [(rd[-1], False), (wr[-1], True)]
-        read_index = [i for i in range(len(rd) - 1)] + [None] * (len(wr) - 1) + [len(rd) - 1, None]
-        port_data = []
-        selects = [(Signal(g.bank_bits, name=f"rd{i}_bank"), Signal(name=f"rd{i}_port"))
-                   for i in range(len(rd))]
-        rows = [lane.addr.row for lane, _ in order]
-        is_write = [int(w) for _, w in order]
-        # each write lane's group (its data source), in ``order``
-        wgroup = iter(self._groups[:-1])
-        order_group = [None if not w else (self._groups[-1] if lane is wr[-1] else next(wgroup))
-                       for lane, w in order]
+        bus_rd, bus_wr = rd[-1], wr[-1]
+
+        def register(lane, name, write):
+            """The lane's request, registered: ``hit[bank][port]``, the row, and a write's
+            ``en`` and bank (for the bus's read) or a read's bank and port (for its data)."""
+            en = lane.en & ~self.flush
+            r = SimpleNamespace(row=Signal(g.row_bits, name=f"{name}_row"),
+                                bank=Signal(g.bank_bits, name=f"{name}_bank"),
+                                hit=[[Signal(name=f"{name}_b{b}p{p}") for p in range(2)]
+                                     for b in range(banks)])
+            m.d.sync += [r.row.eq(lane.addr.row), r.bank.eq(lane.addr.bank)]
+            if write:
+                r.en = Signal(name=f"{name}_en")
+                m.d.sync += r.en.eq(en)
+            else:
+                r.port = Signal(name=f"{name}_port")
+                m.d.sync += r.port.eq(lane.port)
+            for b in range(banks):
+                for p in range(2):
+                    m.d.sync += r.hit[b][p].eq(en & (lane.addr.bank == b) & (lane.port == p))
+            return r
+
+        reads = [register(lane, f"rd{i}", False) for i, lane in enumerate(rd[:-1])]
+        writes = [register(lane, f"wr{i}", True) for i, lane in enumerate(wr[:-1])]
+        # a group's word, registered once
         group_data = {}
-        for (lane, w), grp in zip(order, order_group):
-            if w:
-                group_data.setdefault(grp, lane.data)
-        bus_read = len(rd) - 1 + len(wr) - 1  # the bus's read lane, in ``order``
-        served = []
-        for b in range(g.banks):
-            words = self._init[b::g.banks]
+        for lane, grp in zip(wr[:-1], self._groups[:-1]):
+            if grp not in group_data:
+                group_data[grp] = Signal(self._width, name=f"group{grp}_data")
+                m.d.sync += group_data[grp].eq(lane.data)
+
+        # the bus: a port the engine leaves free, the write port 0, the read port 1 or 0; its
+        # write registered
+        bus_wr_lane = bus_wr
+        bus_wr = SimpleNamespace(en=Signal(name="bus_wr_en"), addr=Signal.like(bus_wr_lane.addr, name="bus_wr_addr"),
+                                 data=Signal(self._width, name="bus_wr_data"))
+        m.d.sync += [bus_wr.en.eq(bus_wr_lane.en), bus_wr.addr.eq(bus_wr_lane.addr),
+                     bus_wr.data.eq(bus_wr_lane.data)]
+        taken = [[_any([r.hit[b][p] for r in reads + writes]) for p in range(2)] for b in range(banks)]
+        bus_w = [bus_wr.en & (bus_wr.addr.bank == b) & ~taken[b][0] for b in range(banks)]
+        bus_r = [[None, None] for _ in range(banks)]
+        for b in range(banks):
+            want = bus_rd.en & (bus_rd.addr.bank == b)
+            bus_r[b][1] = want & ~taken[b][1]
+            bus_r[b][0] = want & taken[b][1] & ~taken[b][0] & ~bus_w[b]
+        written = _any([w.en & (w.row == bus_rd.addr.row) & (w.bank == bus_rd.addr.bank)
+                        for w in writes]) | \
+            (bus_wr.en & (bus_wr.addr.as_value() == bus_rd.addr.as_value()))
+        served = _any([bus_r[b][p] for b in range(banks) for p in range(2)])
+        m.d.comb += self.rd_ok.eq(served & ~written)
+
+        port_data = []
+        for b in range(banks):
+            words = self._init[b::banks]
             # no_rw_check: a read and a write of one word in a cycle read an undefined word
             # (a true dual-port block RAM on either vendor; see the class docstring)
             mem = memory.Memory(shape=unsigned(self._width), depth=g.rows,
                                 init=words + [0] * (g.rows - len(words)), attrs={"no_rw_check": 1})
             m.submodules[f"bank{b}"] = mem
-            hits = _signals(m, f"b{b}_hit", [lane.en & (lane.addr.bank == b) for lane, _ in order])
-            ports = []  # (hit, row, write, grants) of port 0, then port 1
-            for port in range(2):
-                hit = Signal(name=f"b{b}_p{port}")
-                row = Signal(g.row_bits, name=f"b{b}_p{port}_row")
-                write = Signal(name=f"b{b}_p{port}_write")
-                m.d.comb += [hit.eq(_first(hits, [1] * len(hits))),
-                             row.eq(_first(hits, rows)), write.eq(_first(hits, is_write))]
-                ports.append((hit, row, write, hits))
-                if port == 0:
-                    # port 0 serves its own lane and every read of the word it reads
-                    shared = _signals(m, f"b{b}_shared", [
-                        h & ~write & (r == row) if not w else h & ~prior
-                        for h, r, w, prior in zip(hits, rows, is_write, _prefix_or(m, b, hits))])
-                    hits = _signals(m, f"b{b}_hit1", [h & ~s for h, s in zip(hits, shared)])
             datas = []
-            for port, (hit, row, write, hs) in enumerate(ports):
-                rp = mem.read_port()
-                wp = mem.write_port()
-                # the port's write lane (if its first hit is a write), then its group's word
-                prior = _prefix_or(m, f"{b}_w{port}", hs)
-                if port == 1:  # the bus read: served by port 0 (its word) or port 1, or not at all
-                    k = bus_read
-                    served.append(shared[k] | (hs[k] & ~prior[k]))
-                sel = {}
-                for h, pr, grp in zip(hs, prior, order_group):
-                    if grp is not None:
-                        sel[grp] = sel.get(grp, 0) | (h & ~pr)
+            for p in range(2):
+                rp, wp = mem.read_port(), mem.write_port()
+                row = 0
+                for r in reads + writes:
+                    row = row | Mux(r.hit[b][p], r.row, 0)
+                if p == 0:
+                    row = row | Mux(bus_w[b], bus_wr.addr.row, 0)
+                row = row | Mux(bus_r[b][p], bus_rd.addr.row, 0)
                 wdata = 0
-                for grp, sg in sel.items():
-                    wdata = wdata | Mux(sg, group_data[grp], 0)
-                m.d.comb += [
-                    rp.addr.eq(row), wp.addr.eq(row),
-                    wp.en.eq(hit & write),
-                    wp.data.eq(wdata),
-                ]
+                for grp, word in group_data.items():
+                    sel = _any([w.hit[b][p] for w, lg in zip(writes, self._groups[:-1]) if lg == grp])
+                    wdata = wdata | Mux(sel, word, 0)
+                we = _any([w.hit[b][p] for w in writes])
+                if p == 0:
+                    wdata = wdata | Mux(bus_w[b], bus_wr.data, 0)
+                    we = we | bus_w[b]
+                m.d.comb += [rp.addr.eq(row), wp.addr.eq(row), wp.en.eq(we), wp.data.eq(wdata)]
                 datas.append(rp.data)
             port_data.append(Array(datas))
-            for (lane, w), s, i, h in zip(order, shared, read_index, ports[0][3]):
-                if not w:
-                    with m.If(h):
-                        m.d.sync += selects[i][1].eq(~s)
-        bus = rd[-1].addr.as_value()
-        written = Cat(w.en & (w.addr.as_value() == bus) for w in wr).any()  # undefined: retry
-        m.d.comb += self.rd_ok.eq(Cat(served).any() & ~written)
         # every index covered: Verilator -Wall wants complete cases
-        port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - g.banks))
-        for lane, (bank, port) in zip(rd, selects):
-            m.d.sync += bank.eq(lane.addr.bank)
-            m.d.comb += lane.data.eq(port_data[bank][port])
+        port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - banks))
+        # the engine's reads: (bank, port) follow the request to the RAM's output; the word
+        # is registered there
+        for lane, r in zip(rd[:-1], reads):
+            sel_bank, sel_port = Signal.like(r.bank), Signal.like(r.port)
+            m.d.sync += [sel_bank.eq(r.bank), sel_port.eq(r.port),
+                         lane.data.eq(port_data[sel_bank][sel_port])]
+        # the bus's read: latency 1
+        sel_bank, sel_port = Signal(g.bank_bits), Signal()
+        m.d.sync += [sel_bank.eq(bus_rd.addr.bank),
+                     sel_port.eq(~_any([bus_r[b][0] for b in range(banks)]))]
+        m.d.comb += bus_rd.data.eq(port_data[sel_bank][sel_port])
         return m

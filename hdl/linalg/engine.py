@@ -4,16 +4,20 @@ cycle as :mod:`.schedule` planned them, on its banked operand memory.
 ::
 
   start/step ─► sequencer ─► InstructionStream pe0 .. pe{P-1}, div, sqrt, copy (ROMs)
-                   │                 │ fire + instruction, the cycle before the start
+                   │                 │ fire + instruction (registers), the cycle before the start
                    │                 ▼
                    │      ProcessingElement x P  SharedUnit div / sqrt / copy
                    │         3 read, 2 write       2|1 read, 1 write lane (2: mirrors)
-                   │                 │ ▲
-                   │                 ▼ │  crossbar (per bank: port 0 to the first lane,
-  bus port  ───────┼──────────► BankedMemory    port 1 to the next; bus lanes last)
-                   │            2P dual-port RAM banks, constants initialised
+                   │                 │ ▲          each lane names its bank port (scheduled)
+                   │                 ▼ │  lane registers, OR crossbar, RAM, data registers
+  bus port  ───────┼──────────► BankedMemory    (the bus's lanes take the ports left free)
+                   │            dual-port RAM banks, constants initialised
                    ▼
          busy / done / err_pivot / err_nan / flags
+
+Every path starts and ends at a register or a block RAM within a short distance: the fetch
+decides an issue from registers, the units issue from registers, the crossbar is an OR of
+registered requests, and a read's word is registered behind the RAM.
 """
 
 from __future__ import annotations
@@ -29,10 +33,10 @@ from .units import ProcessingElement, SharedUnit
 
 __all__ = ["Engine", "OVERHEAD"]
 
-#: Cycles a step takes beyond its schedule: the program store's first fetch (the step's
-#: cycle -1, when instructions starting at cycle 0 leave their streams) and ``done``'s
-#: register.
-OVERHEAD = 2
+#: Cycles a step takes beyond its schedule: ``start``'s register, the streams' lead to the
+#: step's cycle 0 (:attr:`InstructionStream.LEAD`), the last write's lane register and
+#: ``done``'s register, less the cycle of ``start``.
+OVERHEAD = 1 + InstructionStream.LEAD + 1
 
 
 class Engine(wiring.Component):
@@ -54,10 +58,10 @@ class Engine(wiring.Component):
     holds the word at ``mem_raddr`` of the previous cycle (read latency 1) when ``mem_rok``
     was high with it. The engine's lanes come first: while busy a bus read is served only
     where the step leaves its bank a port (``mem_rok``; else the reader retries), and a bus
-    write may be lost or corrupt the step (the bus front end refuses them). A bus read of a
-    word written in the same cycle (by the step or the bus) is not served either: the block
-    RAM leaves that word undefined, and the retry reads the new word. Constants are in the
-    memory from configuration; nothing resets the memory.
+    write may be lost (the bus front end refuses them). A bus read of a word written in the
+    same cycle (by the step or the bus) is not served either: the block RAM leaves that word
+    undefined, and the retry reads the new word. Constants are in the memory from
+    configuration; nothing resets the memory.
 
     Parameters
     ----------
@@ -131,6 +135,7 @@ class Engine(wiring.Component):
         groups = [k for k, (_, u) in enumerate(units) for _ in u.wr]  # a unit's lanes carry one word
         m.submodules.memory = mem = BankedMemory(g, fmt.width, self._layout.initial_memory(),
                                                  len(reads) + 1, len(writes) + 1, groups + [len(units)])
+        m.d.comb += mem.flush.eq(self.halt)
         for a, b in zip(reads, mem.rd):
             wiring.connect(m, a, b)
         for a, b in zip(writes, mem.wr):
@@ -147,14 +152,17 @@ class Engine(wiring.Component):
             bus_wr.addr.row.eq(self.mem_waddr // g.banks),
             bus_wr.data.eq(self.mem_wdata),
         ]
-        # the sequencer: count the step's cycles from -1 to its last write
+        # the sequencer: start registered into the streams; count the step's cycles from the
+        # one after start to the one its last write reaches the memory
         go = self.start & ~self.busy
+        go_r = Signal()
         step = Signal.like(self.step)
-        count = Signal(range(max(code.cycles) + 1))
+        count = Signal(range(max(code.cycles) + OVERHEAD - 1))
         pad = (1 << len(step)) - len(code.cycles)  # every step index covered
-        last = Array(C(c, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
+        last = Array(C(c + OVERHEAD - 2, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
+        m.d.sync += go_r.eq(go & ~self.halt)
         for stream, _ in units:
-            m.d.comb += [stream.start.eq(go), stream.step.eq(self.step)]
+            m.d.comb += [stream.start.eq(go_r), stream.step.eq(step)]
         m.d.sync += self.done.eq(0)
         with m.If(self.halt):
             m.d.sync += self.busy.eq(0)

@@ -20,7 +20,11 @@ from dataclasses import dataclass
 from .schedule import Schedule
 from .store import Instruction, encode
 
-__all__ = ["Geometry", "StreamImage", "Microcode", "compile_steps"]
+__all__ = ["Geometry", "StreamImage", "Microcode", "compile_steps", "READ_LATENCY"]
+
+#: Cycles from a lane's read to its data in the engine: the lane register in front of the
+#: crossbar, the block RAM, the data register behind it.
+READ_LATENCY = 3
 
 
 def _bits(v: int) -> int:
@@ -82,6 +86,7 @@ def _word(ins: Instruction, delta: int, g: Geometry) -> dict:
         "dst1": g.addr(dst[1]),
         "mirror": int(len(ins.dst) == 2),
         "check": {None: 0, "pivot": 1, "finite": 2}[ins.check],
+        **dict(zip(("pa", "pb", "pi", "pd0", "pd1"), ins.ports)),
     }
     if ins.unit == "fma":
         w.update({
@@ -106,8 +111,8 @@ def compile_steps(scheds: list[Schedule]) -> Microcode:
             raise ValueError("every step must be scheduled on one machine and one memory layout")
     if mc.pes is None:
         raise ValueError("the engine needs a machine with a finite number of PEs")
-    if mc.read_latency != 1:
-        raise ValueError(f"the engine's memory has read latency 1, not {mc.read_latency}")
+    if mc.read_latency != READ_LATENCY:
+        raise ValueError(f"the engine's memory has read latency {READ_LATENCY}, not {mc.read_latency}")
     g = Geometry(layout.size, mc.banks)
     extra = [u for u in ("exp", "max") if any(u in s.program.units for s in scheds)]
     names = [f"pe{p}" for p in range(mc.pes)] + ["div", "sqrt", "copy"] + extra

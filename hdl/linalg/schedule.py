@@ -13,12 +13,16 @@ The machine (:class:`Machine`):
   ``sqrt_interval`` cycles (1: pipelined; more: an iterative unit, far smaller, which is
   enough for the rare pivots and sqrt(D)); one move unit for copies (read a word, write it
   back; latency 0 beyond the read).
-* Reads happen at issue and take ``read_latency`` cycles (a synchronous RAM); a result is
-  written ``read_latency + L`` cycles after its (last) issue and may be read from the next
-  cycle (no bypass). A mirrored result is written to both addresses in that cycle.
+* Reads happen at issue and take ``read_latency`` cycles (the engine's: its lane register,
+  the block RAM, the data register: 3); a result is written ``read_latency + L`` cycles
+  after its (last) issue and may be read from the next cycle (no bypass). A mirrored result
+  is written to both addresses in that cycle.
 * The operand memory has ``banks`` banks, word ``a`` in bank ``a % banks``, each with
-  ``ports`` ports per cycle (a dual-port RAM: 2), each port one read or one write; the
-  same word read by several units in a cycle takes one port (a broadcast).
+  ``ports`` ports per cycle (a dual-port RAM: 2), each port one read or one write. The
+  scheduler assigns the ports: each lane of an operation (``a``, ``b``, ``init``, each
+  destination) keeps one port for the whole operation, and no port of a bank is asked for
+  two things in one cycle, except reads of one word (a broadcast). So the hardware's
+  crossbar needs no arbitration: a port's address is the OR of the lanes that name it.
 
 Operations are placed one at a time, most critical first (longest latency path to the end
 of the step), each at the earliest cycle where its operands are ready, the words it
@@ -48,7 +52,7 @@ class Machine:
     sqrt_latency: int
     banks: int | None = None  # None: 2 * pes (two reads a PE a cycle; the core's choice)
     ports: int = 2
-    read_latency: int = 1
+    read_latency: int = 3  # the engine's memory: lane register, block RAM, data register
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
     exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
@@ -81,14 +85,17 @@ class Machine:
 
 @dataclass(frozen=True)
 class Placement:
-    """Where one operation runs: ``unit`` (``fma``/``div``/``sqrt``), PE index (fma), first
-    issue cycle, and the cycle its result is written."""
+    """Where one operation runs: ``unit``, PE index (fma), first issue cycle, the cycle its
+    result is written, and the memory port of each lane: ``ports[lane]`` for the lanes
+    ``a``, ``b``, ``init``, ``dst0``, ``dst1`` that the operation has (empty on unlimited
+    machines)."""
 
     op: int
     unit: str
     pe: int
     start: int
     write: int
+    ports: dict = field(default_factory=dict, compare=False)
 
 
 @dataclass
@@ -132,12 +139,26 @@ def _shape(op, mc: Machine):
 
 def _reads_at(op, mc: Machine):
     """[(offset, address)] of the reads, relative to the first issue."""
+    return [r for lane in _lanes(op, mc).values() for r in lane]
+
+
+def _lanes(op, mc: Machine):
+    """{lane: [(offset, address)]} of the reads, by read lane (``a``, ``b``, ``init``)."""
     if op.unit != "fma":
-        return [(0, a) for a in op.reads]
-    r = [] if op.init is None else [(-1, op.init)]
-    for k, (a, b, _) in enumerate(op.terms):
-        r += [(k * mc.fma_latency, a), (k * mc.fma_latency, b)]
-    return r
+        return {k: [(0, a)] for k, a in zip("ab", op.reads)}
+    lf = mc.fma_latency
+    lanes = {"a": [(k * lf, t[0]) for k, t in enumerate(op.terms)],
+             "b": [(k * lf, t[1]) for k, t in enumerate(op.terms)]}
+    if op.init is not None:
+        lanes["init"] = [(-1, op.init)]
+    return lanes
+
+
+_WRITE = -1  # a port's use by a write (addresses are >= 0)
+
+#: Port choices tried for a pair of lanes (different ports first) and for one lane.
+_PAIRS = ((0, 1), (1, 0), (0, 0), (1, 1))
+_ONE = ((0,), (1,))
 
 
 def schedule(prog: Program, mc: Machine) -> Schedule:
@@ -178,13 +199,13 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
     unlimited = mc.pes is None
     pe_busy = set()  # (pe, cycle)
     unit_busy = set()  # (unit, cycle)
-    port_reads = defaultdict(set)  # (bank, cycle) -> addresses read
-    port_writes = defaultdict(int)  # (bank, cycle) -> writes
+    port_use = {}  # (bank, port, cycle) -> the address read there, or _WRITE
     ready = {}  # address -> first cycle it may be read (written by this step)
     read_last = defaultdict(lambda: -1)  # address -> last cycle it is read
     write_last = defaultdict(lambda: -1)
     pe_floor = defaultdict(int)  # every slot of a PE below this cycle is taken
     placed = [None] * nops
+    lanes = [_lanes(op, mc) for op in ops]
     if not unlimited:
         for i, op in enumerate(ops):
             per = defaultdict(set)
@@ -196,24 +217,42 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
     heap = [(-prio[i], i) for i in range(nops) if npred[i] == 0]
     heapq.heapify(heap)
 
-    def ports_free(rd, wr, t, woff):
-        if unlimited:
-            return True
-        want = defaultdict(set)
-        for off, a in rd:
-            want[((a % mc.banks), t + off)].add(a)
-        for key, addrs in want.items():
-            have = port_reads.get(key, ())
-            if len(have) + len(addrs - set(have)) + port_writes.get(key, 0) > mc.ports:
+    def fits(uses):
+        """Whether ``uses`` ((bank, port, cycle), address or _WRITE) agree with each other
+        and with the ports taken: one word read, or one write, per port and cycle."""
+        mine = {}
+        for key, a in uses:
+            have = port_use.get(key, mine.get(key))
+            if have is not None and (have != a or a == _WRITE):
                 return False
-        wcount = defaultdict(int)
-        for a in wr:
-            wcount[a % mc.banks] += 1
-        w = t + woff
-        for bank, k in wcount.items():
-            if len(port_reads.get((bank, w), ())) + port_writes.get((bank, w), 0) + k > mc.ports:
-                return False
+            mine[key] = a
         return True
+
+    def choose_ports(i, t, w):
+        """Ports for each lane of operation ``i`` issued at ``t`` and written at ``w``, or
+        None. Lanes ``a`` and ``b`` are chosen together (they read in the same cycles), then
+        ``init`` (the cycle before) and the destinations (at ``w``, no read cycle of the
+        operation), each independently."""
+        rd = lanes[i]
+        chosen = {}
+        for names in (tuple(k for k in ("a", "b") if k in rd), ("init",) if "init" in rd else (),
+                      tuple(f"dst{k}" for k in range(len(ops[i].dst)))):
+            if not names:
+                continue
+            for ports in (_PAIRS if len(names) == 2 else _ONE):
+                uses = []
+                for name, port in zip(names, ports):
+                    if name.startswith("dst"):
+                        a = ops[i].dst[int(name[3:])]
+                        uses.append(((a % mc.banks, port, w), _WRITE))
+                    else:
+                        uses += [((a % mc.banks, port, t + off), a) for off, a in rd[name]]
+                if fits(uses):
+                    chosen.update(zip(names, ports))
+                    break
+            else:
+                return None
+        return chosen
 
     while heap:
         _, i = heapq.heappop(heap)
@@ -226,6 +265,7 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                 t = max(t, ready[a] - off)
         for a in op.dst:
             t = max(t, read_last[a] + 1 - woff, write_last[a] + 1 - woff)
+        ports = {}
         if unlimited:
             pe = 0
         else:
@@ -239,8 +279,10 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                 else:
                     pe = 0
                     ok = all((op.unit, t + k) not in unit_busy for k in range(mc.interval(op.unit)))
-                if ok and ports_free(rd, op.dst, t, woff):
-                    break
+                if ok:
+                    ports = choose_ports(i, t, t + woff)
+                    if ports is not None:
+                        break
                 t += 1
             if op.unit == "fma":
                 for o in offs:
@@ -251,17 +293,18 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
                 pe_floor[pe] = f
             else:
                 unit_busy.update((op.unit, t + k) for k in range(mc.interval(op.unit)))
-            for off, a in rd:
-                port_reads[a % mc.banks, t + off].add(a)
-            for a in op.dst:
-                port_writes[a % mc.banks, t + woff] += 1
+            for name, lane in lanes[i].items():
+                for off, a in lane:
+                    port_use[a % mc.banks, ports[name], t + off] = a
+            for k, a in enumerate(op.dst):
+                port_use[a % mc.banks, ports[f"dst{k}"], t + woff] = _WRITE
         w = t + woff
         for off, a in rd:
             read_last[a] = max(read_last[a], t + off)
         for a in op.dst:
             ready[a] = w + 1
             write_last[a] = w
-        placed[i] = Placement(i, op.unit, pe, t, w)
+        placed[i] = Placement(i, op.unit, pe, t, w, ports)
         for j in succ[i]:
             npred[j] -= 1
             if npred[j] == 0:

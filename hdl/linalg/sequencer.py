@@ -16,25 +16,30 @@ def instruction_layout(unit: str, geometry, widths, mirror: bool = True) -> data
     """A stream's instruction word (fields of :mod:`.microcode`); without ``mirror`` (no
     instruction of the stream writes a second address) no ``mirror`` and ``dst1``."""
     addr = addr_layout(geometry)
-    fields = {"delta": unsigned(widths["delta"]), "a": addr, "b": addr, "dst": addr, "check": 2}
+    fields = {"delta": unsigned(widths["delta"]), "a": addr, "pa": 1, "b": addr, "pb": 1,
+              "dst": addr, "pd0": 1, "check": 2}
     if mirror:
-        fields.update({"dst1": addr, "mirror": 1})
+        fields.update({"dst1": addr, "pd1": 1, "mirror": 1})
     if unit == "fma":
         fields.update({"count": unsigned(widths["count"]), "sa": addr, "sb": addr, "neg": 1,
-                       "first": 1, "init_en": 1, "init": addr, "last": 1})
+                       "first": 1, "init_en": 1, "init": addr, "pi": 1, "last": 1})
     if unit in ("sqrt", "copy", "exp"):
-        del fields["b"]
+        del fields["b"], fields["pb"]
     return data.StructLayout(fields)
 
 
 class InstructionStream(wiring.Component):
     """One unit's instructions: a ROM holding every step, and its fetch.
 
-    ``start`` (one cycle, while the stream is idle) selects step ``step``; the following
-    cycle is the step's cycle ``-1``. An instruction whose step cycle is ``t`` (``delta``
-    after the previous one's, the first after cycle 0) leaves the stream at cycle ``t - 1``:
-    ``fire`` is high and ``ins`` holds it. The ROM is read one instruction ahead (read latency
-    1), so instructions may start on consecutive cycles.
+    ``start`` (one cycle, while the stream is idle) selects step ``step``; the step's cycle
+    0 is :data:`LEAD` cycles after that one. An instruction whose step cycle is ``t``
+    (``delta`` after the previous one's, the first's after cycle 0) leaves the stream at
+    cycle ``t - 1``: ``fire`` is high and ``ins`` holds it. Both are registers.
+
+    The fetch is pipelined so that no path runs from the ROM's output back to its address:
+    the ROM (read latency 1) holds the next instruction but one, a register the next one,
+    and a counter of the cycles since the last issue decides, from registers alone, when the
+    next one leaves (instructions may leave on consecutive cycles).
 
     Parameters
     ----------
@@ -51,6 +56,10 @@ class InstructionStream(wiring.Component):
         Valid while ``fire``.
     """
 
+    #: Cycles from the one ``start`` is high in to the step's cycle 0: the ROM's first read,
+    #: the next-instruction register, the issue decision and the output register.
+    LEAD = 4
+
     def __init__(self, image, layout):
         self._image = image
         steps = len(image.bases)
@@ -65,22 +74,33 @@ class InstructionStream(wiring.Component):
         words = [{k: v for k, v in w.items() if k in layout.members} for w in img.words] or [{}]
         m.submodules.rom = rom = memory.Memory(shape=layout, depth=depth, init=words)
         rp = rom.read_port()
-        idx = Signal(range(depth + 1))
-        end = Signal(range(depth + 1))
-        elapsed = Signal(layout.members["delta"])
         pad = (1 << len(self.step)) - len(img.bases)  # every step index covered
         bases = Array(C(b, range(depth + 1)) for b in img.bases + img.bases[-1:] * pad)
         ends = Array(C(e, range(depth + 1)) for e in img.ends + img.ends[-1:] * pad)
-        m.d.comb += [
-            self.ins.eq(rp.data),
-            self.fire.eq((idx != end) & (elapsed == rp.data.delta)),
-        ]
+        idx = Signal(range(depth + 1))  # the ROM's next read
+        end = Signal(range(depth + 1))
+        a_valid = Signal()  # the ROM's output is an instruction of the step not yet taken
+        nxt = Signal(layout)  # the next instruction to leave
+        nxt_valid = Signal()
+        elapsed = Signal(layout.members["delta"])  # cycles since the last one left
+        go = Signal()
+        m.d.comb += go.eq(nxt_valid & (elapsed == nxt.delta))
+        take = Signal()
+        m.d.comb += take.eq((go | ~nxt_valid) & a_valid)
+        m.d.sync += self.fire.eq(go)
+        with m.If(go):
+            m.d.sync += self.ins.eq(nxt)
         with m.If(self.start):
-            m.d.comb += rp.addr.eq(bases[self.step])
-            m.d.sync += [idx.eq(bases[self.step]), end.eq(ends[self.step]), elapsed.eq(0)]
+            m.d.comb += [rp.addr.eq(bases[self.step]), rp.en.eq(1)]
+            m.d.sync += [idx.eq(bases[self.step] + 1), end.eq(ends[self.step]),
+                         a_valid.eq(bases[self.step] != ends[self.step]), nxt_valid.eq(0)]
         with m.Else():
-            m.d.comb += rp.addr.eq(idx + self.fire)
-            m.d.sync += idx.eq(idx + self.fire)
-            # after the stream's last instruction (idx == end) elapsed may wrap: it is unused
-            m.d.sync += elapsed.eq(Mux(self.fire, 1, elapsed + 1))
+            m.d.comb += [rp.addr.eq(idx), rp.en.eq(take)]
+            with m.If(take):
+                m.d.sync += [nxt.eq(rp.data), idx.eq(idx + 1), a_valid.eq(idx != end)]
+            with m.If(go | ~nxt_valid):
+                m.d.sync += nxt_valid.eq(a_valid)
+            # the first instruction counts from the cycle after it is taken; the others from
+            # the cycle after the previous one left (after the last one, elapsed may wrap)
+            m.d.sync += elapsed.eq(Mux(go, 1, Mux(nxt_valid, elapsed + 1, 0)))
         return m

@@ -42,6 +42,7 @@ class Instruction:
     dst: tuple[int, ...]  # last segment (empty otherwise)
     last: bool
     check: str | None
+    ports: tuple = (0, 0, 0, 0, 0)  # memory port of lanes a, b, init, dst0, dst1
 
 
 def _runs(terms):
@@ -61,6 +62,10 @@ def _runs(terms):
     return runs
 
 
+def _ports(p) -> tuple:
+    return tuple(p.ports.get(k, 0) for k in ("a", "b", "init", "dst0", "dst1"))
+
+
 def encode(sched: Schedule) -> list[Instruction]:
     """The instructions of one scheduled step, in start order."""
     lf = sched.machine.fma_latency
@@ -74,11 +79,11 @@ def encode(sched: Schedule) -> list[Instruction]:
                 out.append(Instruction(p.start + i * lf, "fma", p.pe, j - i, op.terms[i][0], sa,
                                        op.terms[i][1], sb, op.terms[i][2], r == 0,
                                        op.init if r == 0 else None, op.dst if last else (),
-                                       last, op.check if last else None))
+                                       last, op.check if last else None, _ports(p)))
         else:
             rd = op.reads
             out.append(Instruction(p.start, p.unit, 0, 1, rd[0], 0, rd[1] if len(rd) > 1 else 0,
-                                   0, False, True, None, op.dst, True, op.check))
+                                   0, False, True, None, op.dst, True, op.check, _ports(p)))
     out.sort(key=lambda ins: (ins.start, UNITS.index(ins.unit), ins.pe))
     return out
 
@@ -122,5 +127,6 @@ def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
         "dst": 1 + 2 * A,  # a mirror flag, two addresses (the second only when mirrored)
         "last": 1,
         "check": 2,
+        "ports": 5,  # a, b, init, dst0, dst1
     }
     return StoreSize(len(allins), sum(f.values()), f)

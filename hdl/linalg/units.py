@@ -2,9 +2,9 @@
 accumulations) and the shared divider, square root and move unit.
 
 Both take an instruction from their :class:`~.sequencer.InstructionStream` the cycle before
-it starts (``fire``), read their operands at the start cycle ``t`` (data at ``t + 1``, read
-latency 1) and write the result at ``t + 1 + L`` after the last issue: the scheduler's
-machine, cycle for cycle.
+it starts (``fire``), read their operands at the start cycle ``t`` on the memory ports the
+instruction names (data at ``t + R``, :data:`~.microcode.READ_LATENCY`) and write the result
+at ``t + R + L`` after the last issue: the scheduler's machine, cycle for cycle.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from kfgen.hdl.arith.float.fma import FloatFMA
 from kfgen.hdl.arith.float.sqrt import FloatSqrt
 
 from .banks import ReadLane, WriteLane, addr_layout
+from .microcode import READ_LATENCY
 
 __all__ = ["ProcessingElement", "SharedUnit", "faults"]
 
@@ -55,13 +56,14 @@ def _advance(g, m, addr, stride):
 
 def _writeback_layout(g, mirror=True):
     addr = addr_layout(g)
-    return data.StructLayout({"en": 1, "dst": addr, "check": 2,
-                              **({"mirror": 1, "dst1": addr} if mirror else {})})
+    return data.StructLayout({"en": 1, "dst": addr, "pd0": 1, "check": 2,
+                              **({"mirror": 1, "dst1": addr, "pd1": 1} if mirror else {})})
 
 
 def _delay(m, wb, cycles, name):
-    """The write-back ``wb`` delayed by ``cycles`` registers: ``en`` in registers that a reset
-    (a halt) clears, the rest without reset, so that it maps to shift-register LUTs."""
+    """``wb`` (a layout whose first field is ``en``) delayed by ``cycles`` registers: ``en``
+    in registers that a reset (a halt) clears, the rest without reset, so that it maps to
+    shift-register LUTs."""
     en, rest = wb.en, wb.as_value()[1:]
     for i in range(cycles):
         nxt_en = Signal(name=f"{name}_en_{i + 1}")
@@ -94,12 +96,13 @@ class _Unit(wiring.Component):
         write lane carries ``y``: the memory muxes one copy (``BankedMemory``'s groups)."""
         pivot, nan = faults(self._fmt, y, wb.check)
         m.d.comb += [
-            self.wr[0].en.eq(wb.en), self.wr[0].addr.eq(wb.dst), self.wr[0].data.eq(y),
+            self.wr[0].en.eq(wb.en), self.wr[0].addr.eq(wb.dst), self.wr[0].port.eq(wb.pd0),
+            self.wr[0].data.eq(y),
             self.pivot.eq(wb.en & pivot), self.nan.eq(wb.en & nan),
         ]
         if self._mirror:
             m.d.comb += [self.wr[1].en.eq(wb.en & wb.mirror), self.wr[1].addr.eq(wb.dst1),
-                         self.wr[1].data.eq(y)]
+                         self.wr[1].port.eq(wb.pd1), self.wr[1].data.eq(y)]
 
 
 class ProcessingElement(_Unit):
@@ -111,8 +114,9 @@ class ProcessingElement(_Unit):
     modulo ``Lf``; the slot at the head issues (reads ``a_k``, ``b_k``; advances both address
     generators) and goes to the tail. A new segment takes the head the cycle it starts (its
     phase is free: the scheduler placed it there). The addend of a first term is ``init``,
-    read on the third lane the cycle before the start, or ``-0``; any other term's is the
-    FMA's output of the same phase, ``Lf`` cycles after the previous term.
+    read on the third lane the cycle before the start (and held a cycle), or ``-0``; any
+    other term's is the FMA's output of the same phase, ``Lf`` cycles after the previous
+    term. A term's operands reach the FMA ``R`` cycles after its issue.
 
     Parameters
     ----------
@@ -134,7 +138,7 @@ class ProcessingElement(_Unit):
     flags : Out(5)
         The FMA's IEEE flags of every term, the cycle it leaves the FMA.
 
-    Latency: a result is written ``1 + Lf`` cycles after its last term issues.
+    Latency: a result is written ``R + Lf`` cycles after its last term issues.
     """
 
     def __init__(self, fmt, geometry, layout, stages=None):
@@ -148,20 +152,21 @@ class ProcessingElement(_Unit):
         lf = fma.latency
         ins = self.ins
         addr = addr_layout(g)
-        wb_fields = ("dst", "check", *(("mirror", "dst1") if self._mirror else ()))
+        wb_fields = ("dst", "pd0", "check", *(("mirror", "dst1", "pd1") if self._mirror else ()))
         slot = data.StructLayout({
             "active": 1, "rem": ins.count.shape(), "a": addr, "sa": addr, "b": addr, "sb": addr,
-            "neg": 1, "first": 1, "init_en": 1, "last": 1,
+            "pa": 1, "pb": 1, "neg": 1, "first": 1, "init_en": 1, "last": 1,
             **{k: ins.shape().members[k] for k in wb_fields}})
         # the cycle before the start: the init read, and the new segment registered
         new = Signal(slot)
         m.d.comb += [self.rd[2].en.eq(self.fire & ins.first & ins.init_en),
-                     self.rd[2].addr.eq(ins.init)]
+                     self.rd[2].addr.eq(ins.init), self.rd[2].port.eq(ins.pi)]
         m.d.sync += new.active.eq(self.fire)
         with m.If(self.fire):
             m.d.sync += [new.rem.eq(ins.count)]
             m.d.sync += [getattr(new, k).eq(getattr(ins, k)) for k in
-                         ("a", "sa", "b", "sb", "neg", "first", "init_en", "last", *wb_fields)]
+                         ("a", "sa", "b", "sb", "pa", "pb", "neg", "first", "init_en", "last",
+                          *wb_fields)]
         # issue: the head of the ring, or the new segment
         ring = [Signal(slot, name=f"ring{i}") for i in range(lf)]
         head = Signal(slot)
@@ -178,22 +183,21 @@ class ProcessingElement(_Unit):
         m.d.sync += [ring[i].eq(ring[i + 1]) for i in range(lf - 1)]
         m.d.sync += ring[-1].eq(nxt)
         m.d.comb += [
-            self.rd[0].en.eq(head.active), self.rd[0].addr.eq(head.a),
-            self.rd[1].en.eq(head.active), self.rd[1].addr.eq(head.b),
+            self.rd[0].en.eq(head.active), self.rd[0].addr.eq(head.a), self.rd[0].port.eq(head.pa),
+            self.rd[1].en.eq(head.active), self.rd[1].addr.eq(head.b), self.rd[1].port.eq(head.pb),
         ]
-        # operands arrive: into the FMA
-        valid = Signal()
-        neg = Signal()
-        first = Signal()
-        init_en = Signal()
+        # operands arrive R cycles after the issue: into the FMA
+        issue = Signal(data.StructLayout({"en": 1, "neg": 1, "first": 1, "init_en": 1}))
+        m.d.comb += [issue.en.eq(head.active), issue.neg.eq(head.neg), issue.first.eq(head.first),
+                     issue.init_en.eq(head.init_en)]
+        arrive = _delay(m, issue, READ_LATENCY, "arrive")
+        valid, neg, first, init_en = arrive.en, arrive.neg, arrive.first, arrive.init_en
         init = Signal(fmt.width)
-        wb = self._writeback()
-        m.d.sync += [
-            valid.eq(head.active), neg.eq(head.neg), first.eq(head.first),
-            init_en.eq(head.init_en), init.eq(self.rd[2].data),
-            wb.en.eq(head.active & head.last & (head.rem == 1)),
-            *(getattr(wb, k).eq(getattr(head, k)) for k in wb_fields),
-        ]
+        m.d.sync += init.eq(self.rd[2].data)  # read the cycle before the first issue: held one
+        wb0 = self._writeback()
+        m.d.comb += [wb0.en.eq(head.active & head.last & (head.rem == 1)),
+                     *(getattr(wb0, k).eq(getattr(head, k)) for k in wb_fields)]
+        wb = _delay(m, wb0, READ_LATENCY, "operands")
         sign = Const(fmt.sign_mask, fmt.width)
         m.d.comb += [
             fma.i_valid.eq(valid),
@@ -225,7 +229,7 @@ class SharedUnit(_Unit):
     """The divider (``a / b``), the square root (``sqrt(a)``), the exponential (``exp(a)``),
     the move unit (``a``) or the comparator (``max(a, b)``): one issue every
     ``cycles_per_op`` cycles, operands read at the start ``t``, the result written at
-    ``t + 1 + L`` (``L = 0`` for a move and a maximum).
+    ``t + R + L`` (``L = 0`` for a move and a maximum).
 
     Parameters
     ----------
@@ -257,11 +261,13 @@ class SharedUnit(_Unit):
         with m.If(self.fire):
             m.d.sync += new.eq(ins)
         for i, lane in enumerate(self.rd):
-            m.d.comb += [lane.en.eq(new_en), lane.addr.eq(new.a if i == 0 else new.b)]
-        wb = self._writeback()
-        m.d.sync += [wb.en.eq(new_en), wb.dst.eq(new.dst), wb.check.eq(new.check)]
+            m.d.comb += [lane.en.eq(new_en), lane.addr.eq(new.a if i == 0 else new.b),
+                         lane.port.eq(new.pa if i == 0 else new.pb)]
+        wb0 = self._writeback()
+        m.d.comb += [wb0.en.eq(new_en), wb0.dst.eq(new.dst), wb0.pd0.eq(new.pd0), wb0.check.eq(new.check)]
         if self._mirror:
-            m.d.sync += [wb.mirror.eq(new.mirror), wb.dst1.eq(new.dst1)]
+            m.d.comb += [wb0.mirror.eq(new.mirror), wb0.dst1.eq(new.dst1), wb0.pd1.eq(new.pd1)]
+        wb = _delay(m, wb0, READ_LATENCY, "operands")  # the operands arrive
         if self._kind == "copy":
             self._write(m, wb, self.rd[0].data)
             return m

@@ -9,7 +9,7 @@ from amaranth.sim import Simulator
 
 from kfgen.gen.verilog import emit
 from kfgen.hdl.linalg.banks import BankedMemory
-from kfgen.hdl.linalg.microcode import Geometry
+from kfgen.hdl.linalg.microcode import READ_LATENCY, Geometry
 from kfgen.sim.toolchain import yosys_cmd
 
 G = Geometry(size=64, banks=2)
@@ -22,43 +22,67 @@ def banks():
     return BankedMemory(G, 32, INIT, reads=3, writes=3, groups=[0, 0, 1])
 
 
-def test_bus_read_of_a_word_written_retries():
-    """A bus read of a word some lane writes in that cycle is not served (its block-RAM word
-    is undefined); the retry reads the new word. Other bus reads are served beside writes."""
+def test_lanes_ports_and_bus_retry():
+    """The engine's lanes reach the RAM a cycle after their request on the port they name,
+    and a read's word is on its lane READ_LATENCY cycles after it; reads of one word share a
+    port. The bus's lanes take a port the engine leaves free (its write a cycle after the
+    request, its read in that cycle); a bus read of a word some lane writes in that RAM
+    cycle, or whose bank has no free port, is not served (its block-RAM word would be undefined, or there is no port); the retry
+    reads the new word. A flush drops the requests of its cycle."""
     dut = banks()
-    unit_rd, bus_rd = dut.rd[0], dut.rd[-1]
-    unit_wr, bus_wr = dut.wr[0], dut.wr[-1]
-
-    def at(lane, a):
-        return [(lane.en, 1), (lane.addr.bank, G.addr(a)["bank"]), (lane.addr.row, G.addr(a)["row"])]
+    unit_rd, bus_rd = dut.rd[:2], dut.rd[-1]
+    unit_wr, bus_wr = dut.wr[:2], dut.wr[-1]
+    assert READ_LATENCY == 3
 
     async def tb(ctx):
-        async def cycle(**lanes):
-            """One cycle of the lanes given; ``rd_ok`` then, and the bus's word after it."""
-            for lane in (*dut.rd[:-1], *dut.wr):
+        log = []  # per cycle: (rd_ok, bus data after the cycle, unit lanes' data after it)
+
+        async def cycle(flush=0, **lanes):
+            for lane in (*dut.rd, *dut.wr):
                 ctx.set(lane.en, 0)
-            for name, (lane, a, *data) in lanes.items():
-                for sig, v in at(lane, a):
-                    ctx.set(sig, v)
+            ctx.set(dut.flush, flush)
+            for lane, a, *rest in lanes.values():
+                ctx.set(lane.en, 1)
+                ctx.set(lane.addr.bank, G.addr(a)["bank"])
+                ctx.set(lane.addr.row, G.addr(a)["row"])
+                port, *data = rest or [0]
+                ctx.set(lane.port, port)
                 if data:
                     ctx.set(lane.data, data[0])
             ok = ctx.get(dut.rd_ok)
             await ctx.tick()
-            return ok, ctx.get(bus_rd.data)
+            log.append((ok, ctx.get(bus_rd.data), [ctx.get(r.data) for r in unit_rd]))
+            return log[-1][:2]
 
-        ctx.set(bus_rd.en, 1)
         assert await cycle(bus=(bus_rd, 5)) == (1, 0x105)
-        # the step writes word 6 while the bus reads it: retry, then the new word
-        assert (await cycle(bus=(bus_rd, 6), w=(unit_wr, 6, 0xAAAA)))[0] == 0
+        # the engine writes word 6: in the RAM the next cycle, when a bus read of it retries
+        await cycle(w=(unit_wr[0], 6, 1, 0xAAAA))
+        assert (await cycle(bus=(bus_rd, 6)))[0] == 0
         assert await cycle(bus=(bus_rd, 6)) == (1, 0xAAAA)
-        # the bus writes word 8 while it reads it (a read and a write burst meeting)
-        assert (await cycle(bus=(bus_rd, 8), w=(bus_wr, 8, 0xBBBB)))[0] == 0
+        # the bus writes word 8 while it reads it (a read and a write burst meeting): the
+        # write is registered, so the read takes the old word; the next one retries
+        assert await cycle(bus=(bus_rd, 8), w=(bus_wr, 8, 0, 0xBBBB)) == (1, 0x108)
+        assert (await cycle(bus=(bus_rd, 8)))[0] == 0
         assert await cycle(bus=(bus_rd, 8)) == (1, 0xBBBB)
-        # beside a write of another word of the bank, and sharing a unit's read: served
-        assert await cycle(bus=(bus_rd, 10), w=(unit_wr, 12, 0xCCCC)) == (1, 0x10A)
-        assert await cycle(bus=(bus_rd, 12), r=(unit_rd, 12)) == (1, 0xCCCC)
-        # the bank's two ports taken by a unit's read and write of other words: not served
-        assert (await cycle(bus=(bus_rd, 14), r=(unit_rd, 16), w=(unit_wr, 18, 1)))[0] == 0
+        # two engine reads of word 12 on port 1 (a broadcast), then a bus read of word 10 of
+        # the same bank takes port 0 beside them; the engine's word three cycles later
+        n = len(log)
+        await cycle(r0=(unit_rd[0], 12, 1), r1=(unit_rd[1], 12, 1))
+        assert await cycle(bus=(bus_rd, 10)) == (1, 0x10A)
+        await cycle()
+        assert log[n + 2][2] == [0x10C, 0x10C]
+        # an engine read (port 1) and write (port 0) of other words of a bank: the bus's read
+        # of that bank is not served; the engine's read and write are
+        n = len(log)
+        await cycle(r0=(unit_rd[0], 16, 1), w=(unit_wr[0], 18, 0, 0xDDDD))
+        assert (await cycle(bus=(bus_rd, 14)))[0] == 0
+        await cycle()
+        assert log[n + 2][2][0] == 0x110
+        assert await cycle(bus=(bus_rd, 18)) == (1, 0xDDDD)
+        # a write requested with flush high is dropped
+        await cycle(flush=1, w=(unit_wr[0], 20, 0, 0xEEEE))
+        await cycle()
+        assert await cycle(bus=(bus_rd, 20)) == (1, 0x114)
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
@@ -91,7 +115,10 @@ def stats(tmp_path_factory):
 ])
 def test_each_bank_is_one_block_ram(stats, family, ram, per_bank, ff):
     """Each bank a true dual-port block RAM (both ports reading and writing), not flip-flops:
-    the only registers left are the read lanes' port selects."""
+    the only registers left are the lanes' (185: per engine read lane its row, bank, port,
+    port hits, data select and word, 45; per engine write lane 11, and one word for the
+    unit; the bus's write, 39; the bus read's data select), far below the 2,048 bits of the
+    memory."""
     cells = stats[family]
     assert cells.get(ram, 0) == per_bank * G.banks, cells
-    assert cells.get(ff, 0) <= 16, cells
+    assert cells.get(ff, 0) <= 185, cells
