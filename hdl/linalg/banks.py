@@ -93,8 +93,8 @@ class BankedMemory(wiring.Component):
         lanes (and of the bus's write) and no lane writes its word in this RAM cycle. When
         it is not, its ``data`` next cycle is some other word, and the reader retries.
     flush : In(1)
-        The engine's requests registered this cycle are dropped (a soft reset: nothing more
-        is written).
+        The engine's writes asked for in this cycle and in the one before are dropped (a
+        soft reset registered on its way to the units: nothing more is written).
     """
 
     def __init__(self, geometry, width, init, reads, writes, groups=None):
@@ -182,7 +182,7 @@ class BankedMemory(wiring.Component):
                 for grp, word in group_data.items():
                     sel = _any([w.hit[b][p] for w, lg in zip(writes, self._groups[:-1]) if lg == grp])
                     wdata = wdata | Mux(sel, word, 0)
-                we = _any([w.hit[b][p] for w in writes])
+                we = _any([w.hit[b][p] for w in writes]) & ~self.flush
                 if p == 0:
                     wdata = wdata | Mux(bus_w[b], bus_wr.data, 0)
                     we = we | bus_w[b]

@@ -115,11 +115,16 @@ class Engine(wiring.Component):
         mc, fmt, code = self._mc, self._fmt, self._code
         g = code.geometry
         units = []
+        # the soft reset, registered: it reaches every unit and stream a cycle later (a net of
+        # thousands of loads, driven from a register); the memory drops what they ask for in
+        # the meantime
+        halt = Signal()
+        m.d.sync += halt.eq(self.halt)
         for name, img in code.streams.items():
             mirror = any(w["mirror"] for w in img.words)  # else one write lane, no dst1
             layout = instruction_layout(img.unit, g, code.widths, mirror)
             stream = InstructionStream(img, layout)
-            m.submodules[f"{name}_stream"] = ResetInserter(self.halt)(stream)
+            m.submodules[f"{name}_stream"] = ResetInserter(halt)(stream)
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
             else:
@@ -127,7 +132,7 @@ class Engine(wiring.Component):
                           "copy": None, "max": None}[img.unit]
                 unit = SharedUnit(img.unit, fmt, g, layout, stages=stages,
                                   cycles_per_op=mc.interval(img.unit))
-            m.submodules[name] = ResetInserter(self.halt)(unit)  # no write in flight
+            m.submodules[name] = ResetInserter(halt)(unit)  # no write in flight
             m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]
             units.append((stream, unit))
         reads = [lane for _, u in units for lane in u.rd]
@@ -135,7 +140,7 @@ class Engine(wiring.Component):
         groups = [k for k, (_, u) in enumerate(units) for _ in u.wr]  # a unit's lanes carry one word
         m.submodules.memory = mem = BankedMemory(g, fmt.width, self._layout.initial_memory(),
                                                  len(reads) + 1, len(writes) + 1, groups + [len(units)])
-        m.d.comb += mem.flush.eq(self.halt)
+        m.d.comb += mem.flush.eq(halt)
         for a, b in zip(reads, mem.rd):
             wiring.connect(m, a, b)
         for a, b in zip(writes, mem.wr):

@@ -106,9 +106,11 @@ def test_fpu_conversion_sweeps(build_root):
     _simulate(build_root, "conversions", units, seed=3)
 
 
+@pytest.mark.full
 def test_fpu_16bit_exhaustive(build_root):
     """Every binary16 and bfloat16 word through the one-operand float units (sqrt, f2i),
-    both subnormal modes for sqrt (a few seconds of simulation, so in every run)."""
+    both subnormal modes for sqrt (an exhaustive sweep: make test-full; every run has the
+    directed and random operands of test_fpu_units_bit_exact in both formats)."""
     units = {}
     for fmt_name in ("binary16", "bfloat16"):
         words = [(w,) for w in range(1 << 16)]

@@ -146,7 +146,15 @@ def test_two_word_elements_in_amaranth():
             return err
 
         async def read(addr):
+            """As the front end reads: the address held while the back end says wait (a
+            word written the cycle before is still on its way to the memory)."""
             ctx.set(bus.r_addr, addr)
+            for _ in range(4):
+                if not ctx.get(bus.r_wait):
+                    break
+                await ctx.tick()
+            else:
+                raise AssertionError(f"the read of {addr:#x} waits on an idle core")
             ctx.set(bus.r_en, 1)
             await ctx.tick()
             ctx.set(bus.r_en, 0)
