@@ -105,6 +105,17 @@ class _Unit(wiring.Component):
                          self.wr[1].port.eq(wb.pd1), self.wr[1].data.eq(y)]
 
 
+class PeFMA(FloatFMA):
+    """The PE's FMA: the default's stages moved one place towards the input, so that a
+    register stands at its input (fed by the addend select and the operands' sign flip) and
+    none at its output (the result feeds the addend select and the write lane's register,
+    both registered). The same latency, bit for bit the same results; any other stage count
+    is the FMA's own plan."""
+
+    PLANS = {**FloatFMA.PLANS,
+             FloatFMA.DEFAULT_STAGES: ("in", *FloatFMA.PLANS[FloatFMA.DEFAULT_STAGES][:-1])}
+
+
 class ProcessingElement(_Unit):
     """A fused multiply-add whose output feeds its addend: ``Lf`` accumulations interleave,
     one term a cycle (the chapter's PE, without a FIFO: the scheduler spaces an
@@ -148,7 +159,7 @@ class ProcessingElement(_Unit):
     def elaborate(self, platform):
         m = Module()
         fmt, g = self._fmt, self._g
-        m.submodules.fma = fma = FloatFMA(fmt, stages=self._stages)
+        m.submodules.fma = fma = PeFMA(fmt, stages=self._stages)
         lf = fma.latency
         ins = self.ins
         addr = addr_layout(g)

@@ -13,7 +13,7 @@ from ..arith.float.sqrt import FloatSqrt
 from ..linalg.schedule import Machine, schedule
 from ..linalg.ukf_steps import UkfPrograms, UkfSizes, build_ukf
 
-__all__ = ["programs", "machine", "schedules", "PE_FMA_STAGES"]
+__all__ = ["programs", "machine", "schedules"]
 
 
 def programs(params) -> UkfPrograms:
@@ -21,20 +21,15 @@ def programs(params) -> UkfPrograms:
     return build_ukf(UkfSizes(params.n, params.nw, params.nv, params.m), params.w0, params.format)
 
 
-#: The PEs' FMA pipeline: the FMA's default and its input register, which the accumulator's
-#: addend select (``init``, ``-0`` or the FMA's own result) and the operands' sign flip feed.
-PE_FMA_STAGES = FloatFMA.DEFAULT_STAGES + 1
-
-
 def machine(params) -> Machine:
-    """P processing elements (FMAs of :data:`PE_FMA_STAGES`), ``params.banks`` memory banks,
-    and the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle:
-    an operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
+    """P processing elements (the FMA's default pipeline), ``params.banks`` memory banks, and
+    the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle: an
+    operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
     pipelined."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
     div, sqrt = (cls(fmt, cycles_per_op=per_op[cls]) for cls in (FloatDiv, FloatSqrt))
-    return Machine(params.pes, FloatFMA(fmt, stages=PE_FMA_STAGES).latency, div.latency, sqrt.latency, banks=params.banks,
+    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval)
 
 
