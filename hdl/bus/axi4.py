@@ -33,7 +33,7 @@ Decisions, in the order a user of the port meets them:
   monitors).
 
 Timing (clock cycles, no backpressure): a read burst of N beats accepted (AR handshake) at cycle
-t returns its beats at t+2 .. t+N+1, and the next read burst's address is accepted the cycle after
+t returns its beats at t+1+L .. t+N+L for a back end of read latency L (1 or 2), and the next read burst's address is accepted the cycle after
 the last beat of the previous one is issued to the back end, so back-to-back read bursts (and
 single reads) stream with no gap. A write burst accepted at t takes its beats at t+1 .. t+N and
 gives B at t+N+1; the next write address is accepted at t+N+1 (N + 1 cycles per write burst).
@@ -42,6 +42,8 @@ No output depends combinationally on an input (AXI4's rule for interfaces): ever
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 from amaranth.hdl import Const, Module, Mux, Signal
 from amaranth.lib import enum, wiring
@@ -71,9 +73,11 @@ class Resp(enum.Enum, shape=2):
 class WordBusSignature(wiring.Signature):
     """The back-end interface, as the front end drives it (``Out``: front end to back end).
 
-    Addresses are word addresses (the AXI byte address shifted right by two). Reads have a latency
-    of one cycle: ``r_data`` and ``r_err`` answer in the cycle after the one where ``r_en`` was
-    high, and are don't-care otherwise. Writes are answered in their own cycle: ``w_err`` is a
+    Addresses are word addresses (the AXI byte address shifted right by two). Reads have a fixed
+    latency of ``read_latency`` cycles (1 or 2): ``r_data`` and ``r_err`` answer that many cycles
+    after the one where ``r_en`` was high, and are don't-care otherwise. (2 lets a back end
+    register a block RAM's word before it leaves, when the RAM's clock-to-output is most of a
+    cycle.) Writes are answered in their own cycle: ``w_err`` is a
     combinational function of ``w_addr``, ``w_strb`` (and the back end's state), and a write the
     back end refuses must change nothing. One read and one write may come in the same cycle.
 
@@ -81,15 +85,16 @@ class WordBusSignature(wiring.Signature):
     ----------
     addr_width : int
         Word-address width.
+    read_latency : 1 or 2
 
     Members
     -------
     r_addr : Out(addr_width)
     r_en : Out(1)
     r_data : In(32)
-        The word at ``r_addr`` one cycle after ``r_en``.
+        The word at ``r_addr``, ``read_latency`` cycles after ``r_en``.
     r_err : In(1)
-        One cycle after ``r_en``: the read is refused (nothing is mapped there).
+        With ``r_data``: the read is refused (nothing is mapped there).
     r_wait : In(1)
         In the cycle of ``r_addr``: the back end cannot read there this cycle; the front end
         holds the read (``r_en`` stays low) and offers it again the next cycle, so the R
@@ -103,10 +108,13 @@ class WordBusSignature(wiring.Signature):
         Same cycle as ``w_en``: the write is refused and changes nothing.
     """
 
-    def __init__(self, addr_width: int):
+    def __init__(self, addr_width: int, read_latency: int = 1):
         if not isinstance(addr_width, int) or addr_width < 1:
             raise ValueError(f"addr_width must be a positive integer, not {addr_width!r}")
+        if read_latency not in (1, 2) or isinstance(read_latency, bool):
+            raise ValueError(f"read_latency must be 1 or 2, not {read_latency!r}")
         self._addr_width = addr_width
+        self._read_latency = read_latency
         super().__init__({
             "r_addr": Out(addr_width),
             "r_en": Out(1),
@@ -123,6 +131,10 @@ class WordBusSignature(wiring.Signature):
     @property
     def addr_width(self) -> int:
         return self._addr_width
+
+    @property
+    def read_latency(self) -> int:
+        return self._read_latency
 
     def __eq__(self, other):
         return isinstance(other, WordBusSignature) and other.addr_width == self.addr_width
@@ -180,30 +192,33 @@ class Axi4Slave(wiring.Component):
         AXI byte-address width, 3..64.
     id_width : int
         ``AxID``/``xID`` width, 1..32.
+    read_latency : 1 or 2
+        The back end's (:class:`WordBusSignature`).
 
     Members
     -------
     s_axi_aw*, s_axi_w*, s_axi_b*, s_axi_ar*, s_axi_r*
         The AXI4 slave port (:func:`axi4_slave_members`), 32-bit data.
-    bus : Out(WordBusSignature(addr_width - 2))
+    bus : Out(WordBusSignature(addr_width - 2, read_latency))
         To the back end.
 
-    Latency and throughput: reads, AR handshake to first R beat 2 cycles, then one beat per clock
-    and back-to-back bursts; writes, one beat per clock from the cycle after the AW handshake, B
-    one cycle after the last beat, N + 1 cycles per N-beat burst. The back end's read port is
+    Latency and throughput: reads, AR handshake to first R beat ``1 + read_latency`` cycles,
+    then one beat per clock and back-to-back bursts; writes, one beat per clock from the cycle
+    after the AW handshake, B one cycle after the last beat, N + 1 cycles per N-beat burst. The back end's read port is
     enabled only when the R channel has room for its answer, so ``RREADY`` low stalls it.
     """
 
-    def __init__(self, addr_width: int = 16, id_width: int = 4):
+    def __init__(self, addr_width: int = 16, id_width: int = 4, read_latency: int = 1):
         if not isinstance(addr_width, int) or not 3 <= addr_width <= 64:
             raise ValueError(f"addr_width must be an integer from 3 to 64, not {addr_width!r}")
         if not isinstance(id_width, int) or not 1 <= id_width <= 32:
             raise ValueError(f"id_width must be an integer from 1 to 32, not {id_width!r}")
         self._addr_width = addr_width
         self._id_width = id_width
+        self._read_latency = read_latency
         super().__init__({
             **axi4_slave_members(addr_width, id_width),
-            "bus": Out(WordBusSignature(addr_width - 2)),
+            "bus": Out(WordBusSignature(addr_width - 2, read_latency)),
         })
 
     @property
@@ -213,6 +228,10 @@ class Axi4Slave(wiring.Component):
     @property
     def id_width(self) -> int:
         return self._id_width
+
+    @property
+    def read_latency(self) -> int:
+        return self._read_latency
 
     def _refused(self, addr, length, size, burst):
         """Burst-level error: unsupported type or size, or an INCR burst leaving its 4 KB page."""
@@ -253,24 +272,31 @@ class Axi4Slave(wiring.Component):
             ]
         m.d.comb += self.s_axi_arready.eq(~r_active)
 
-        # Answers in flight: one pending back-end read (`p_*`), the R output register and one skid
-        # entry (`s_*`). A read issues only when at most one of them stays occupied after this
-        # cycle, so the answer always finds room, and the R channel still streams one beat a clock.
-        p_valid, p_last, p_id, p_bad = Signal(), Signal(), Signal(self.id_width), Signal()
-        s_valid, s_last, s_id, s_resp, s_data = (
-            Signal(), Signal(), Signal(self.id_width), Signal(2), Signal(DATA_WIDTH))
+        # Answers in flight: the back-end reads pending (`p_*`, one stage per cycle of read
+        # latency L), the R output register and L skid entries (`s_*`, a queue). A read issues
+        # only when at most L of them stay occupied after this cycle, so every answer finds
+        # room, and the R channel still streams one beat a clock.
+        lat = self._read_latency
+        idw = self.id_width
+        p = [SimpleNamespace(valid=Signal(name=f"p{i}_valid"), last=Signal(name=f"p{i}_last"),
+                             id=Signal(idw, name=f"p{i}_id"), bad=Signal(name=f"p{i}_bad"))
+             for i in range(lat)]
+        skid = [SimpleNamespace(last=Signal(name=f"s{i}_last"), id=Signal(idw, name=f"s{i}_id"),
+                                resp=Signal(2, name=f"s{i}_resp"), data=Signal(DATA_WIDTH, name=f"s{i}_data"))
+                for i in range(lat)]
+        s_count = Signal(range(lat + 1))
         r_out_taken = self.s_axi_rvalid & self.s_axi_rready
-        kept = Signal(2)
-        m.d.comb += kept.eq(p_valid + self.s_axi_rvalid + s_valid - r_out_taken)
+        kept = Signal(range(2 * lat + 3))
+        m.d.comb += kept.eq(sum(q.valid for q in p) + self.s_axi_rvalid + s_count - r_out_taken)
         issue = Signal()
         m.d.comb += [
-            issue.eq(h_valid & (kept <= 1) & (h_bad | ~bus.r_wait)),
+            issue.eq(h_valid & (kept <= lat) & (h_bad | ~bus.r_wait)),
             bus.r_en.eq(issue & ~h_bad),
             bus.r_addr.eq(h_addr),
         ]
-        m.d.sync += p_valid.eq(issue)
+        m.d.sync += p[0].valid.eq(issue)
         with m.If(issue):
-            m.d.sync += [p_last.eq(h_left == 0), p_id.eq(h_id), p_bad.eq(h_bad)]
+            m.d.sync += [p[0].last.eq(h_left == 0), p[0].id.eq(h_id), p[0].bad.eq(h_bad)]
             with m.If(h_left == 0):
                 m.d.sync += r_active.eq(0)
             with m.Else():
@@ -281,9 +307,12 @@ class Axi4Slave(wiring.Component):
         with m.Elif(h_valid & ~r_active):  # accepted, not yet issued
             m.d.sync += [r_active.eq(1), r_addr.eq(h_addr), r_left.eq(h_left), r_id.eq(h_id),
                          r_bad.eq(h_bad), r_fixed.eq(h_fixed)]
+        for a, b in zip(p, p[1:]):
+            m.d.sync += [b.valid.eq(a.valid), b.last.eq(a.last), b.id.eq(a.id), b.bad.eq(a.bad)]
 
-        # The pending answer, as an R beat.
-        a_err = p_bad | bus.r_err
+        # The answer arriving (the last pending stage), as an R beat.
+        ans = p[-1]
+        a_err = ans.bad | bus.r_err
         a_resp = Mux(a_err, Resp.SLVERR, Resp.OKAY)
         a_data = Mux(a_err, 0, bus.r_data)
 
@@ -291,18 +320,31 @@ class Axi4Slave(wiring.Component):
             return [self.s_axi_rvalid.eq(1), self.s_axi_rlast.eq(last), self.s_axi_rid.eq(rid),
                     self.s_axi_rresp.eq(resp), self.s_axi_rdata.eq(rdata)]
 
-        with m.If(self.s_axi_rvalid & ~self.s_axi_rready):
-            with m.If(p_valid):  # R is held: the answer goes to the skid entry (empty, see above)
-                m.d.sync += [s_valid.eq(1), s_last.eq(p_last), s_id.eq(p_id), s_resp.eq(a_resp),
-                             s_data.eq(a_data)]
-        with m.Elif(s_valid):  # R is free: the skid entry moves up first
-            m.d.sync += load_r(s_last, s_id, s_resp, s_data)
-            m.d.sync += s_valid.eq(p_valid)
-            m.d.sync += [s_last.eq(p_last), s_id.eq(p_id), s_resp.eq(a_resp), s_data.eq(a_data)]
-        with m.Elif(p_valid):
-            m.d.sync += load_r(p_last, p_id, a_resp, a_data)
-        with m.Else():
-            m.d.sync += self.s_axi_rvalid.eq(0)
+        # R takes the skid queue's head first, else the answer; an answer R does not take
+        # joins the queue's tail (there is room: see the issue rule).
+        r_free = ~self.s_axi_rvalid | self.s_axi_rready
+        pop = Signal()
+        push = Signal()
+        m.d.comb += [pop.eq(r_free & (s_count != 0)), push.eq(ans.valid & ~(r_free & (s_count == 0)))]
+        m.d.sync += s_count.eq(s_count - pop + push)
+        tail = Signal.like(s_count)
+        m.d.comb += tail.eq(s_count - pop)
+        for i, entry in enumerate(skid):
+            with m.If(push & (tail == i)):
+                m.d.sync += [entry.last.eq(ans.last), entry.id.eq(ans.id), entry.resp.eq(a_resp),
+                             entry.data.eq(a_data)]
+            if i + 1 < lat:
+                with m.Elif(pop):
+                    nxt = skid[i + 1]
+                    m.d.sync += [entry.last.eq(nxt.last), entry.id.eq(nxt.id), entry.resp.eq(nxt.resp),
+                                 entry.data.eq(nxt.data)]
+        with m.If(r_free):
+            with m.If(s_count != 0):
+                m.d.sync += load_r(skid[0].last, skid[0].id, skid[0].resp, skid[0].data)
+            with m.Elif(ans.valid):
+                m.d.sync += load_r(ans.last, ans.id, a_resp, a_data)
+            with m.Else():
+                m.d.sync += self.s_axi_rvalid.eq(0)
 
         # ------------------------------------------------------------------ write channel
         w_active = Signal()

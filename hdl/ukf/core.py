@@ -49,6 +49,10 @@ __all__ = ["Ukf", "EngineCore", "Backend"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
 
+#: The back end's read latency on the word bus: the buffer's word is registered behind the
+#: block RAM before it goes to the AXI front end.
+READ_LATENCY = 2
+
 
 class Backend(wiring.Component):
     """Registers and buffer of the UKF behind the word bus (:class:`WordBusSignature`),
@@ -67,7 +71,8 @@ class Backend(wiring.Component):
 
     Members
     -------
-    bus : In(WordBusSignature(address_width - 2))
+    bus : In(WordBusSignature(address_width - 2, READ_LATENCY))
+        Read latency 2: the buffer's word is registered behind the block RAM.
     irq : Out(1)
         ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
     """
@@ -82,7 +87,8 @@ class Backend(wiring.Component):
                 raise ValueError("CTRL.step's values must name the engine's steps in its order")
         elif len(engine.step_names) != 1:
             raise ValueError("an engine of several steps needs a CTRL.step field")
-        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2)), "irq": Out(1)})
+        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, READ_LATENCY)),
+                          "irq": Out(1)})
 
     def elaborate(self, platform):
         m = Module()
@@ -161,7 +167,7 @@ class Backend(wiring.Component):
                 m.d.sync += [enable[e].eq(wd[irq_reg.field(e).lsb]) for e in _EVENTS]
             m.d.sync += self.irq.eq(~do_reset & Cat(seen[e] & enable[e] for e in _EVENTS).any())
 
-        # ------------------------------------------------------------- reads (latency 1)
+        # ------------------------------------------------------------- reads (latency 2)
         r_buf, r_elem, r_half = buffer_at(bus.r_addr)
         m.d.comb += [eng.mem_raddr.eq(r_elem), bus.r_wait.eq(r_buf & ~eng.mem_rok)]
 
@@ -195,12 +201,14 @@ class Backend(wiring.Component):
                         m.d.sync += [reg_data.eq(values[name]), err.eq(0)]
                 with m.Default():  # the buffer, or a hole
                     m.d.sync += [reg_data.eq(0), err.eq(~r_buf)]
+        # the memory's word (latency 1) and the registers' registered once more: a block RAM's
+        # clock-to-output is most of a cycle, so nothing but the half select follows it
         elem = eng.mem_rdata
-        if words == 2:
-            buf_data = Mux(half, elem[32:], elem[:32])
-        else:
-            buf_data = elem
-        m.d.comb += [bus.r_data.eq(Mux(err, 0, Mux(from_buf, buf_data, reg_data))), bus.r_err.eq(err)]
+        buf_r, reg_r, from_buf_r, err_r = Signal(32), Signal(32), Signal(), Signal()
+        m.d.sync += [buf_r.eq(Mux(half, elem[32:], elem[:32]) if words == 2 else elem),
+                     reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
+        # (a refused read's data is the front end's to zero)
+        m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_r, reg_r)), bus.r_err.eq(err_r)]
         return m
 
 
@@ -258,7 +266,7 @@ class EngineCore(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH)
+        m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, READ_LATENCY)
         m.submodules.engine = self._engine
         m.submodules.back = back = Backend(self._params, self._engine, self._map)
         wiring.connect(m, front.bus, back.bus)

@@ -26,14 +26,16 @@ TOP = "axi4_test"
 class MapBackend(wiring.Component):
     """The simplest back end: memory, a read/write register, a read-only register, holes.
 
-    Read latency 1 (the memory's read port, and the registers read into a register beside it);
+    Read latency 1 (the memory's read port, and the registers read into a register beside it),
+    or 2 (both registered once more);
     byte strobes applied per byte to memory words and to the register. Reads of the upper half
     of the memory wait (``r_wait``) one cycle in four, by a free-running LFSR, as a busy back
     end's would (the lower half keeps the throughput case's one beat a clock).
     """
 
-    def __init__(self):
-        super().__init__({"bus": In(WordBusSignature(ADDR_WIDTH - 2))})
+    def __init__(self, read_latency=1):
+        self._lat = read_latency
+        super().__init__({"bus": In(WordBusSignature(ADDR_WIDTH - 2, read_latency))})
 
     def elaborate(self, platform):
         m = Module()
@@ -56,7 +58,12 @@ class MapBackend(wiring.Component):
         with m.If(bus.r_en):
             m.d.sync += [from_mem.eq(r_mem), err.eq(~(r_mem | r_scratch | r_id)),
                          reg.eq(Mux(r_scratch, scratch, ID_VALUE))]
-        m.d.comb += [bus.r_data.eq(Mux(from_mem, rd.data, reg)), bus.r_err.eq(err)]
+        data = Mux(from_mem, rd.data, reg)
+        if self._lat == 2:
+            data_r, err_r = Signal(32), Signal()
+            m.d.sync += [data_r.eq(data), err_r.eq(err)]
+            data, err = data_r, err_r
+        m.d.comb += [bus.r_data.eq(data), bus.r_err.eq(err)]
 
         w_mem, w_scratch, _ = decode(bus.w_addr)
         m.d.comb += [
@@ -72,25 +79,28 @@ class MapBackend(wiring.Component):
 
 
 class Axi4TestTop(wiring.Component):
-    def __init__(self):
+    def __init__(self, read_latency=1):
+        self._lat = read_latency
         self._members = axi4_slave_members(ADDR_WIDTH, ID_WIDTH)
         super().__init__(self._members)
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.front = front = Axi4Slave(ADDR_WIDTH, ID_WIDTH)
-        m.submodules.back = back = MapBackend()
+        m.submodules.front = front = Axi4Slave(ADDR_WIDTH, ID_WIDTH, self._lat)
+        m.submodules.back = back = MapBackend(self._lat)
         wiring.connect(m, front.bus, back.bus)
         forward(m, self, front, self._members)
         return m
 
 
-@pytest.fixture(scope="module")
-def rtl(build_root):
-    out = build_root / "axi4"
+@pytest.fixture(scope="module", params=[1, 2], ids=["latency1", "latency2"])
+def rtl(request, build_root):
+    """The test top with a back end of read latency 1 and 2 (the UKF's and IMM's buffer)."""
+    out = build_root / f"axi4_l{request.param}"
     out.mkdir(parents=True, exist_ok=True)
-    lines = header("axi4 test top", TOP, {"addr_width": ADDR_WIDTH, "id_width": ID_WIDTH})
-    text = emit(Axi4TestTop(), TOP, lines)
+    lines = header("axi4 test top", TOP, {"addr_width": ADDR_WIDTH, "id_width": ID_WIDTH,
+                                          "read_latency": request.param})
+    text = emit(Axi4TestTop(request.param), TOP, lines)
     (out / f"{TOP}.v").write_text(text)
     (out / f"{TOP}.vlt").write_text(waivers(text, TOP, lines) + "\n" + lint_waivers(TOP))
     return out
@@ -105,24 +115,26 @@ def test_lint(rtl):
 def sim(rtl):
     runs = rtl / "runs"
     runs.mkdir(exist_ok=True)
-    return build([rtl / f"{TOP}.v"], TOP, rtl / "sim_build"), runs
+    return build([rtl / f"{TOP}.v"], TOP, rtl / "sim_build"), runs, int(rtl.name[-1])
 
 
 @pytest.mark.parametrize("tests", [["bursts", "fixed_bursts"], ["errors", "strobes", "raw_cases"],
                                    ["throughput", "stress"]], ids=lambda tests: tests[0])
 def test_cocotb(sim, tests):
     """Every case of :mod:`axi4_tb`, in three simulator runs of one build."""
-    model, run_dir = sim
+    model, run_dir, lat = sim
     pattern = "|".join(rf"axi4_tb\.{t}\b" for t in tests)
-    run_test(model, "axi4_tb", run_dir, tests[0], {"COCOTB_TEST_FILTER": pattern})
+    run_test(model, "axi4_tb", run_dir, tests[0], {"COCOTB_TEST_FILTER": pattern,
+                                                    "KFGEN_TB_READ_LATENCY": str(lat)})
 
 
-def test_no_input_to_output_path():
+@pytest.mark.parametrize("read_latency", [1, 2])
+def test_no_input_to_output_path(read_latency):
     """AXI4: no combinational path from an input to an output. Between clock edges, random
     inputs (busy bursts, random ready) must leave every output as it was after the edge."""
     import numpy as np
 
-    dut = Axi4Slave(ADDR_WIDTH, ID_WIDTH)
+    dut = Axi4Slave(ADDR_WIDTH, ID_WIDTH, read_latency)
     ins = [getattr(dut, n) for n, mb in dut.signature.members.items() if n.startswith("s_axi") and mb.flow == In]
     outs = [getattr(dut, n) for n, mb in dut.signature.members.items() if n.startswith("s_axi") and mb.flow != In]
     rng = np.random.default_rng(3)

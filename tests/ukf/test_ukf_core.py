@@ -158,6 +158,7 @@ def test_two_word_elements_in_amaranth():
             ctx.set(bus.r_en, 1)
             await ctx.tick()
             ctx.set(bus.r_en, 0)
+            await ctx.tick()  # read latency 2
             return ctx.get(bus.r_data), ctx.get(bus.r_err)
 
         assert not await write(x, lo)
