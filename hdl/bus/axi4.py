@@ -33,9 +33,9 @@ Decisions, in the order a user of the port meets them:
   monitors).
 
 Timing (clock cycles, no backpressure): a read burst of N beats accepted (AR handshake) at cycle
-t returns its beats at t+1+L .. t+N+L for a back end of read latency L (1 or 2), and the next read burst's address is accepted the cycle after
-the last beat of the previous one is issued to the back end, so back-to-back read bursts (and
-single reads) stream with no gap. A write burst accepted at t takes its beats at t+1 .. t+N and
+t returns its beats at t+1+L .. t+N+L for a back end of read latency L (1 or 2), and the next
+read burst's address is accepted the cycle after the last beat of the previous one is issued
+to the back end, so back-to-back read bursts (and single reads) stream with no gap. A write burst accepted at t takes its beats at t+1 .. t+N and
 gives B at t+N+1; the next write address is accepted at t+N+1 (N + 1 cycles per write burst).
 No output depends combinationally on an input (AXI4's rule for interfaces): every ``*ready``,
 ``*valid`` and payload output is a register.
@@ -204,8 +204,9 @@ class Axi4Slave(wiring.Component):
 
     Latency and throughput: reads, AR handshake to first R beat ``1 + read_latency`` cycles,
     then one beat per clock and back-to-back bursts; writes, one beat per clock from the cycle
-    after the AW handshake, B one cycle after the last beat, N + 1 cycles per N-beat burst. The back end's read port is
-    enabled only when the R channel has room for its answer, so ``RREADY`` low stalls it.
+    after the AW handshake, B one cycle after the last beat, N + 1 cycles per N-beat burst.
+    The back end's read port is enabled only when the R channel has room for its answer, so
+    ``RREADY`` low stalls it.
     """
 
     def __init__(self, addr_width: int = 16, id_width: int = 4, read_latency: int = 1):

@@ -50,9 +50,11 @@ class BankedMemory(wiring.Component):
     things in a cycle, except reads of one word. The crossbar therefore has no arbitration:
     a port's address is the OR of the addresses of the lanes that name it. It is pipelined:
     a lane's request (``en``, ``addr``, ``port``, a write's ``data``) is registered, the
-    block RAM is read or written the next cycle, and a read's word is registered behind the
-    RAM: it is on the lane's ``data`` :data:`~.microcode.READ_LATENCY` (3) cycles after the
-    request; a write reaches the RAM one cycle after its request.
+    block RAM is read or written the next cycle, and each port's word is registered right
+    behind the RAM; a read lane's ``data`` is its port's register, selected by a
+    multiplexer, :data:`~.microcode.READ_LATENCY` (3) cycles after the request (a
+    combinational output: the lane's reader registers it, or computes from it, in that
+    cycle). A write reaches the RAM one cycle after its request.
 
     **The bus's lanes** (the last read and the last write) take a port that the engine's
     lanes leave free in the RAM cycle: the write port 0, the read port 1, else port 0. The
@@ -144,7 +146,8 @@ class BankedMemory(wiring.Component):
         # the bus: a port the engine leaves free, the write port 0, the read port 1 or 0; its
         # write registered
         bus_wr_lane = bus_wr
-        bus_wr = SimpleNamespace(en=Signal(name="bus_wr_en"), addr=Signal.like(bus_wr_lane.addr, name="bus_wr_addr"),
+        bus_wr = SimpleNamespace(en=Signal(name="bus_wr_en"),
+                                 addr=Signal.like(bus_wr_lane.addr, name="bus_wr_addr"),
                                  data=Signal(self._width, name="bus_wr_data"))
         m.d.sync += [bus_wr.en.eq(bus_wr_lane.en), bus_wr.addr.eq(bus_wr_lane.addr),
                      bus_wr.data.eq(bus_wr_lane.data)]
@@ -189,14 +192,22 @@ class BankedMemory(wiring.Component):
                 m.d.comb += [rp.addr.eq(row), wp.addr.eq(row), wp.en.eq(we), wp.data.eq(wdata)]
                 datas.append(rp.data)
             port_data.append(Array(datas))
-        # every index covered: Verilator -Wall wants complete cases
-        port_data = Array(port_data + port_data[-1:] * ((1 << g.bank_bits) - banks))
-        # the engine's reads: (bank, port) follow the request to the RAM's output; the word
-        # is registered there
+        # the engine's reads: each port's word registered right behind its RAM (a block RAM's
+        # clock-to-output is most of a cycle: nothing may follow it but a wire to a register),
+        # then the lane's port selected from those registers by its (bank, port), which follow
+        # the request
+        held = [Array(Signal(self._width, name=f"bank{b}_p{p}_word") for p in range(2)) for b in range(banks)]
+        for b in range(banks):
+            m.d.sync += [held[b][p].eq(port_data[b][p]) for p in range(2)]
+        pad = (1 << g.bank_bits) - banks  # every index covered: Verilator -Wall wants complete cases
+        held = Array(held + held[-1:] * pad)
         for lane, r in zip(rd[:-1], reads):
             sel_bank, sel_port = Signal.like(r.bank), Signal.like(r.port)
-            m.d.sync += [sel_bank.eq(r.bank), sel_port.eq(r.port),
-                         lane.data.eq(port_data[sel_bank][sel_port])]
+            sel_bank2, sel_port2 = Signal.like(r.bank), Signal.like(r.port)
+            m.d.sync += [sel_bank.eq(r.bank), sel_port.eq(r.port), sel_bank2.eq(sel_bank),
+                         sel_port2.eq(sel_port)]
+            m.d.comb += lane.data.eq(held[sel_bank2][sel_port2])
+        port_data = Array(port_data + port_data[-1:] * pad)
         # the bus's read: latency 1
         sel_bank, sel_port = Signal(g.bank_bits), Signal()
         m.d.sync += [sel_bank.eq(bus_rd.addr.bank),

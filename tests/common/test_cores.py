@@ -23,9 +23,9 @@ NETLISTS = {
     "fpu_mul": "4e63bc87d479266d52cb587dc406803a3dd42ba600efc6751d89ae68e2c47aee",
     "fpu_sqrt": "0c09a7a131a064d0a361ab68fea53983e4f94afcb08c97acb9994081230d7988",
     "fpu_sub": "344792bc3ff97dda64640f5e639075a0c531c82e6cee8ab02077f81bf4721fdc",
-    "imm": "d96e9e89bd4d800daeebb90aa76c09b911493c85fee5b648d8a6d76871d43d20",
+    "imm": "a846d0839e9071800ea5be1858b915703fa39db0b0ce1bf1b439a9086f24ccbe",
     "schur": "103f85caa5d1c231b094147f014decdfcb5061a06228c15b80c5ce611eaa1ae5",
-    "ukf": "de6a493acbb07c83aad7f7e994e1922be5e03c1ebfe042be626403265adb1afe",
+    "ukf": "c8d5ceaccdab33028779d00dacea7e5e996bb2f8ce56409ce5004a7a184a9df8",
 }
 
 EXAMPLES = [(core, ex) for core in discover().values() for ex in core.examples]
