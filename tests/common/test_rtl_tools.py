@@ -134,6 +134,7 @@ def synth(rtl):
     return results
 
 
+@pytest.mark.xdist_group("castella_synth")  # one synthesis of both families, on one worker
 @pytest.mark.parametrize("family, cell", [("xilinx", "FDRE"), ("ecp5", "TRELLIS_FF")])
 def test_yosys_synth(synth, family, cell):
     returncode, log, stat = synth[family]

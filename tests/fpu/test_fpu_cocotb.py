@@ -79,7 +79,13 @@ def _run_group(build_root, group, n_random, seed):
         for prefix, (op, cpo) in units.items()}, seed)
 
 
-@pytest.mark.parametrize("group", list(GROUPS))
+#: Groups run in make test-full only (their formats and modes are linted in every run, and
+#: their units share every line of Amaranth with the groups that run).
+FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11")
+
+
+@pytest.mark.parametrize("group", [g if g not in FULL_GROUPS else pytest.param(g, marks=pytest.mark.full)
+                                   for g in GROUPS])
 def test_fpu_units_bit_exact(build_root, group):
     results = _run_group(build_root, group, GROUPS[group][3], seed=1)
     for prefix, (op, cpo) in GROUPS[group][2].items():

@@ -93,8 +93,10 @@ def test_nanosat_c_processor(nanosat_core, nanosat_python):
 
 
 @pytest.mark.verilator
-@pytest.mark.parametrize("processor,beats,wait", [("python_processor", "single", "poll"),
-                                                  ("c_processor", "burst", "irq")])
+@pytest.mark.parametrize("processor,beats,wait", [
+    ("python_processor", "single", "poll"),
+    # the C driver with bursts and irq runs on the nanosatellite in every run
+    pytest.param("c_processor", "burst", "irq", marks=pytest.mark.full)])
 @pytest.mark.xdist_group("cosim_tracker")
 def test_tracker(build_root, processor, beats, wait):
     """The range-bearing tracker on a core sized by ``--app`` in binary64 (two bus words an

@@ -92,7 +92,7 @@ def test_cocotb(rtl, sim, tests):
 CONFIGURATIONS = [
     pytest.param([], id="m20_p1"),
     pytest.param(["--pes", "2"], id="m20_p2"),
-    pytest.param([*SMALL, "--format", "binary16", "--pes", "3"], id="small_binary16_p3"),
+    pytest.param([*SMALL, "--format", "binary16", "--pes", "3"], id="small_binary16_p3", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary64", "--pes", "3"], id="small_binary64_p3", marks=pytest.mark.full),
     pytest.param(["--pes", "5"], id="m20_p5", marks=pytest.mark.full),
     pytest.param(["--pes", "10"], id="m20_p10", marks=pytest.mark.full),
