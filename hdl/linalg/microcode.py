@@ -17,14 +17,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .schedule import Schedule
+from .schedule import READ_LATENCY, Schedule
 from .store import Instruction, encode
 
 __all__ = ["Geometry", "StreamImage", "Microcode", "compile_steps", "READ_LATENCY"]
-
-#: Cycles from a lane's read to its data in the engine: the lane register in front of the
-#: crossbar, the block RAM, the data register behind it.
-READ_LATENCY = 3
 
 
 def _bits(v: int) -> int:

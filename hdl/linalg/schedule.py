@@ -39,7 +39,12 @@ from dataclasses import dataclass, field
 
 from .program import Program
 
-__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound"]
+__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "READ_LATENCY"]
+
+
+#: Cycles from a lane's read to its data in the engine: the lane register in front of the
+#: crossbar, the block RAM, the port's register behind it.
+READ_LATENCY = 3
 
 
 @dataclass(frozen=True)
@@ -52,7 +57,7 @@ class Machine:
     sqrt_latency: int
     banks: int | None = None  # None: 2 * pes (two reads a PE a cycle; the core's choice)
     ports: int = 2
-    read_latency: int = 3  # the engine's memory: lane register, block RAM, data register
+    read_latency: int = READ_LATENCY
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
     exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
