@@ -94,7 +94,8 @@ def render(rows: list[dict], args, seconds: dict) -> str:
     e = rows[0]["engine"]
     parts = ["IMM iteration cycles (n = 6, d = 2, binary32):", "", cycles_table(rows), "",
              f"* Unit latencies: FMA {e['fma_latency']}, divider {e['div_latency']}, square root {e['sqrt_latency']}, "
-             f"exp {e['exp_latency']} cycles; operand read {e['read_latency']}. The cycles include "
+             f"exp {e['exp_latency']} cycles, each behind {e['unit_register']} operand register; operand read "
+             f"{e['read_latency']}. The cycles include "
              f"{OVERHEAD} per iteration for the start register, the program store's fetch lead, the last "
              "write's lane register and the done register; the bounds do not.",
              *(f"* R = {r['R']}, P = {r['pes']}: the testbench failed: {r['sim_error']}" for r in rows

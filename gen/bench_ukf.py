@@ -64,7 +64,7 @@ def bounds(params: UkfParams, engine: dict) -> dict:
     """Per step, the multiply-adds and the dependency-chain bound of ``params``' programs with
     the unit latencies of the manifest's ``engine`` block; both do not depend on P."""
     mc = Machine(1, engine["fma_latency"], engine["div_latency"], engine["sqrt_latency"],
-                 read_latency=engine["read_latency"])
+                 read_latency=engine["read_latency"], unit_register=engine["unit_register"])
     steps = programs(params).steps
     return {"fmas": {k: steps[k].fma_count for k in STEPS}, "chain": {k: chain_bound(steps[k], mc) for k in STEPS}}
 
@@ -211,8 +211,9 @@ def render(rows: list[dict], bound: dict, engine: dict, args, seconds: dict) -> 
         "manifest's):" if not args.no_sim else "Cycles per step and iteration, from the manifest (not simulated):",
         "", cycles_table(rows, bound, "manifest_cycles" if args.no_sim else "measured"), "",
         f"* Unit latencies the chain bound assumes (the manifest's engine block): FMA {engine['fma_latency']}, "
-        f"divider {engine['div_latency']}, square root {engine['sqrt_latency']} cycles; operand read "
-        f"{engine['read_latency']} (lane register, block RAM, data register).",
+        f"divider {engine['div_latency']}, square root {engine['sqrt_latency']} cycles, each behind "
+        f"{engine['unit_register']} operand register; operand read {engine['read_latency']} (lane register, "
+        "block RAM, data register).",
         *(f"* P = {r['pes']}: {r['div_sqrt']} divider and square root (a new operation every "
           f"{r['engine']['div_interval']} and {r['engine']['sqrt_interval']} cycles), {r['engine']['banks']} memory "
           "banks." for r in rows),

@@ -47,7 +47,7 @@ def _extra(params, core) -> dict:
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),
                    "chain": chain_bound(sched.program, mc)},
-        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
+        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
                    "sqrt_latency": mc.sqrt_latency, "exp_latency": mc.exp_latency,
                    "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
                    "memory_words": layout.size,

@@ -52,7 +52,7 @@ class Engine(wiring.Component):
     to its end (the same length, so nothing can hang, and the memory then holds exactly
     what :func:`kfgen.sim.linalg.exec.run` leaves, NaNs included), and the core is idle
     after ``done``. The error bits, and ``flags`` (the OR of every FMA, division and square
-    root's IEEE flags NX UF OF DZ NV), clear at the next start and are otherwise held.
+    root's IEEE flags NX UF OF DZ NV), clear the cycle after a start and are otherwise held.
 
     The bus port reads and writes the memory, one read and one write a cycle: ``mem_rdata``
     holds the word at ``mem_raddr`` of the previous cycle (read latency 1) when ``mem_rok``
@@ -131,7 +131,7 @@ class Engine(wiring.Component):
                 stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "exp": mc.exp_latency,
                           "copy": None, "max": None}[img.unit]
                 unit = SharedUnit(img.unit, fmt, g, layout, stages=stages,
-                                  cycles_per_op=mc.interval(img.unit))
+                                  cycles_per_op=mc.interval(img.unit), register=mc.unit_register)
             m.submodules[name] = ResetInserter(halt)(unit)  # no write in flight
             m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]
             units.append((stream, unit))
@@ -172,15 +172,19 @@ class Engine(wiring.Component):
         with m.If(self.halt):
             m.d.sync += self.busy.eq(0)
         with m.Elif(go):
-            m.d.sync += [self.busy.eq(1), step.eq(self.step), count.eq(0),
-                         self.err_pivot.eq(0), self.err_nan.eq(0), self.flags.eq(0)]
+            m.d.sync += [self.busy.eq(1), step.eq(self.step), count.eq(0)]
         with m.Elif(self.busy):
             m.d.sync += count.eq(count + 1)
             with m.If(count == last[step]):
                 m.d.sync += [self.busy.eq(0), self.done.eq(1)]
-            pivot = nan = flags = 0
-            for _, u in units:
-                pivot, nan, flags = pivot | u.pivot, nan | u.nan, flags | u.flags
+        # the status clears a cycle after start (from go's register, not from the bus's
+        # decode), before any unit can write, and gathers the units' faults while busy
+        pivot = nan = flags = 0
+        for _, u in units:
+            pivot, nan, flags = pivot | u.pivot, nan | u.nan, flags | u.flags
+        with m.If(go_r):
+            m.d.sync += [self.err_pivot.eq(0), self.err_nan.eq(0), self.flags.eq(0)]
+        with m.Elif(self.busy & ~self.halt):
             m.d.sync += [self.err_pivot.eq(self.err_pivot | pivot),
                          self.err_nan.eq(self.err_nan | nan),
                          self.flags.eq(self.flags | flags)]

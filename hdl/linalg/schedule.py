@@ -12,7 +12,9 @@ The machine (:class:`Machine`):
 * One divider and one square root, each issuing once every ``div_interval`` /
   ``sqrt_interval`` cycles (1: pipelined; more: an iterative unit, far smaller, which is
   enough for the rare pivots and sqrt(D)); one move unit for copies (read a word, write it
-  back; latency 0 beyond the read).
+  back). Every unit but the PEs adds ``unit_register`` cycles (1) to its own latency: the
+  divider, square root and exponential take their operands through a register, the move
+  unit and the comparator write their result from one (their latency is that register).
 * Reads happen at issue and take ``read_latency`` cycles (the engine's: its lane register,
   the block RAM, the data register: 3); a result is written ``read_latency + L`` cycles
   after its (last) issue and may be read from the next cycle (no bypass). A mirrored result
@@ -39,12 +41,19 @@ from dataclasses import dataclass, field
 
 from .program import Program
 
-__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "READ_LATENCY"]
+__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "READ_LATENCY",
+           "UNIT_REGISTER"]
 
 
 #: Cycles from a lane's read to its data in the engine: the lane register in front of the
 #: crossbar, the block RAM, the port's register behind it.
 READ_LATENCY = 3
+
+#: Registers a shared unit (divider, square root, exponential, move, comparator) adds to its
+#: own latency: the operands' register in front of an arithmetic unit, so that its first
+#: stage does not sit behind a lane's port select; the result's register behind a move or a
+#: maximum, so that a word read is not checked and written in one cycle.
+UNIT_REGISTER = 1
 
 
 @dataclass(frozen=True)
@@ -61,22 +70,26 @@ class Machine:
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
     exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
+    unit_register: int = UNIT_REGISTER  # added to every unit's latency but the FMA's
 
     def __post_init__(self):
         if self.pes is not None and (isinstance(self.pes, bool) or not isinstance(self.pes, int)
                                      or self.pes < 1):
             raise ValueError(f"pes must be a positive integer or None, not {self.pes!r}")
         for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports", "div_interval",
-                  "sqrt_interval", "exp_latency"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if k != "read_latency" else 0):
-                raise ValueError(f"{k} must be a positive integer, not {v!r}")
+                  "sqrt_interval", "exp_latency", "unit_register"):
+            v, lo = getattr(self, k), 0 if k in ("read_latency", "unit_register") else 1
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise ValueError(f"{k} must be an integer of at least {lo}, not {v!r}")
         if self.banks is None and self.pes is not None:
             object.__setattr__(self, "banks", 2 * self.pes)
 
     def latency(self, unit: str) -> int:
-        return {"fma": self.fma_latency, "div": self.div_latency, "sqrt": self.sqrt_latency,
-                "copy": 0, "exp": self.exp_latency, "max": 0}[unit]
+        """Cycles from the arrival of ``unit``'s operands to its write (the scheduler's ``L``)."""
+        if unit == "fma":
+            return self.fma_latency
+        return self.unit_register + {"div": self.div_latency, "sqrt": self.sqrt_latency,
+                                     "copy": 0, "exp": self.exp_latency, "max": 0}[unit]
 
     def interval(self, unit: str) -> int:
         """Cycles from one issue to the next on ``unit`` (1: pipelined)."""
@@ -85,7 +98,8 @@ class Machine:
     def unlimited(self) -> Machine:
         """Unlimited PEs, banks and ports, and a divider and square root per operation."""
         return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
-                       None, self.ports, self.read_latency, exp_latency=self.exp_latency)
+                       None, self.ports, self.read_latency, exp_latency=self.exp_latency,
+                       unit_register=self.unit_register)
 
 
 @dataclass(frozen=True)

@@ -240,7 +240,7 @@ class SharedUnit(_Unit):
     """The divider (``a / b``), the square root (``sqrt(a)``), the exponential (``exp(a)``),
     the move unit (``a``) or the comparator (``max(a, b)``): one issue every
     ``cycles_per_op`` cycles, operands read at the start ``t``, the result written at
-    ``t + R + L`` (``L = 0`` for a move and a maximum).
+    ``t + R + register + L`` (``L = 0`` for a move and a maximum).
 
     Parameters
     ----------
@@ -250,6 +250,9 @@ class SharedUnit(_Unit):
     cycles_per_op : int
         The divider's or square root's initiation interval (1: pipelined; more: iterative,
         issued no more often, as the scheduler guarantees).
+    register : int
+        Registers (:data:`~.schedule.UNIT_REGISTER`) between the operands' arrival and an
+        arithmetic unit's input, or behind a move's or maximum's result.
 
     Members
     -------
@@ -257,11 +260,21 @@ class SharedUnit(_Unit):
     the comparator, one otherwise.
     """
 
-    def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1):
+    def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1, register=1):
         if kind not in ("div", "sqrt", "exp", "copy", "max"):
             raise ValueError(f"kind must be div, sqrt, exp, copy or max, not {kind!r}")
-        self._kind, self._stages, self._per_op = kind, stages, cycles_per_op
+        self._kind, self._stages, self._per_op, self._reg = kind, stages, cycles_per_op, register
         super().__init__(fmt, geometry, layout, 2 if kind in ("div", "max") else 1)
+
+    def _registered(self, m, wb, words, name):
+        """``wb`` and ``words`` behind the unit's ``register`` registers (the words without
+        reset: only ``wb.en`` says whether they mean anything)."""
+        wb = _delay(m, wb, self._reg, f"{name}_wb")
+        for i in range(self._reg):
+            regs = [Signal.like(w, name=f"{name}{k}_{i + 1}", reset_less=True) for k, w in enumerate(words)]
+            m.d.sync += [r.eq(w) for r, w in zip(regs, words)]
+            words = regs
+        return wb, words
 
     def elaborate(self, platform):
         m = Module()
@@ -279,13 +292,15 @@ class SharedUnit(_Unit):
         if self._mirror:
             m.d.comb += [wb0.mirror.eq(new.mirror), wb0.dst1.eq(new.dst1), wb0.pd1.eq(new.pd1)]
         wb = _delay(m, wb0, READ_LATENCY, "operands")  # the operands arrive
-        if self._kind == "copy":
-            self._write(m, wb, self.rd[0].data)
-            return m
-        if self._kind == "max":
-            y, nan = max_word(fmt, self.rd[0].data, self.rd[1].data)
+        operands = [lane.data for lane in self.rd]
+        if self._kind in ("copy", "max"):
+            if self._kind == "copy":
+                wb, (y,) = self._registered(m, wb, operands, "result")
+            else:
+                y, nan = max_word(fmt, *operands)
+                wb, (y, nv) = self._registered(m, wb, [y, wb.en & nan], "result")
+                m.d.comb += self.flags.eq(Mux(nv, 0b10000, 0))  # NV, as a comparison
             self._write(m, wb, y)
-            m.d.comb += self.flags.eq(Mux(wb.en & nan, 0b10000, 0))  # NV, as a comparison
             return m
         if self._kind == "exp":
             unit = FloatExp(fmt, stages=self._stages)
@@ -293,9 +308,10 @@ class SharedUnit(_Unit):
             cls = FloatDiv if self._kind == "div" else FloatSqrt
             unit = cls(fmt, stages=self._stages, cycles_per_op=self._per_op)
         m.submodules.unit = unit
-        m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(self.rd[0].data)]
+        wb, operands = self._registered(m, wb, operands, "operand")
+        m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(operands[0])]
         if self._kind == "div":
-            m.d.comb += unit.i_b.eq(self.rd[1].data)
+            m.d.comb += unit.i_b.eq(operands[1])
         m.d.comb += self.flags.eq(Mux(unit.o_valid, unit.o_flags, 0))
         self._write(m, _delay(m, wb, unit.latency, "wb"), unit.o_y)
         return m

@@ -64,7 +64,7 @@ def _extra(params, core) -> dict:
                              "next edge",
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
-        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
+        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
                    "sqrt_latency": mc.sqrt_latency, "div_interval": mc.div_interval,
                    "sqrt_interval": mc.sqrt_interval, "banks": mc.banks, "memory_words": layout.size,
                    "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
