@@ -12,7 +12,7 @@ from kfgen.gen.bench_ukf import cycles_table, fmax_table, measured_cycles, rende
 
 BOUND = {"fmas": {"sig_gen": 400, "predict": 1000, "update": 2000},
          "chain": {"sig_gen": 300, "predict": 200, "update": 500}}
-ENGINE = {"read_latency": 3, "fma_latency": 9, "div_latency": 32, "sqrt_latency": 29, "div_interval": 1, "sqrt_interval": 1,
+ENGINE = {"read_latency": 3, "unit_register": 1, "fma_latency": 9, "div_latency": 32, "sqrt_latency": 29, "div_interval": 1, "sqrt_interval": 1,
           "banks": 20}
 
 
