@@ -9,7 +9,11 @@ from amaranth.hdl import Array, C, Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["addr_layout", "ReadLane", "WriteLane", "BankedMemory"]
+__all__ = ["addr_layout", "ReadLane", "WriteLane", "BankedMemory", "BUS_READ_LATENCY"]
+
+#: Cycles from the bus's read request to its word on ``data``: the block RAM, then the port's
+#: register behind it (the engine's lanes read through the same registers).
+BUS_READ_LATENCY = 2
 
 
 def addr_layout(geometry) -> data.StructLayout:
@@ -60,9 +64,9 @@ class BankedMemory(wiring.Component):
     lanes leave free in the RAM cycle: the write port 0, the read port 1, else port 0. The
     bus's write is registered as the engine's lanes are (it reaches the RAM the next
     cycle); a bus write whose port is taken then is lost (the bus front end refuses writes
-    while a step runs). The bus's read skips the register: it reaches the RAM in the cycle
-    of the request, and its word is on ``data`` the next cycle (read latency 1) when
-    ``rd_ok`` was high with the request.
+    while a step runs). The bus's read skips the request register: it reaches the RAM in the
+    cycle of the request, and its word, from its port's register, is on ``data`` two cycles
+    later (:data:`BUS_READ_LATENCY`) when ``rd_ok`` was high with the request.
 
     A read and a write of one word in one cycle (on the two ports of its bank) read an
     undefined word, and the RAM says so to synthesis (``no_rw_check``): Xilinx's block RAM
@@ -207,10 +211,11 @@ class BankedMemory(wiring.Component):
             m.d.sync += [sel_bank.eq(r.bank), sel_port.eq(r.port), sel_bank2.eq(sel_bank),
                          sel_port2.eq(sel_port)]
             m.d.comb += lane.data.eq(held[sel_bank2][sel_port2])
-        port_data = Array(port_data + port_data[-1:] * pad)
-        # the bus's read: latency 1
+        # the bus's read: from its port's register, like the lanes' (latency 2)
         sel_bank, sel_port = Signal(g.bank_bits), Signal()
+        sel_bank2, sel_port2 = Signal.like(sel_bank), Signal.like(sel_port)
         m.d.sync += [sel_bank.eq(bus_rd.addr.bank),
-                     sel_port.eq(~_any([bus_r[b][0] for b in range(banks)]))]
-        m.d.comb += bus_rd.data.eq(port_data[sel_bank][sel_port])
+                     sel_port.eq(~_any([bus_r[b][0] for b in range(banks)])),
+                     sel_bank2.eq(sel_bank), sel_port2.eq(sel_port)]
+        m.d.comb += bus_rd.data.eq(held[sel_bank2][sel_port2])
         return m

@@ -55,8 +55,9 @@ class Engine(wiring.Component):
     root's IEEE flags NX UF OF DZ NV), clear the cycle after a start and are otherwise held.
 
     The bus port reads and writes the memory, one read and one write a cycle: ``mem_rdata``
-    holds the word at ``mem_raddr`` of the previous cycle (read latency 1) when ``mem_rok``
-    was high with it. The engine's lanes come first: while busy a bus read is served only
+    holds the word at ``mem_raddr`` of two cycles before (read latency 2,
+    :data:`~.banks.BUS_READ_LATENCY`: the block RAM and the register behind it) when
+    ``mem_rok`` was high with it. The engine's lanes come first: while busy a bus read is served only
     where the step leaves its bank a port (``mem_rok``; else the reader retries), and a bus
     write may be lost (the bus front end refuses them). A bus read of a word written in the
     same cycle (by the step or the bus) is not served either: the block RAM leaves that word

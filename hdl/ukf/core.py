@@ -41,6 +41,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from ..bus.axi4 import Axi4Slave, WordBusSignature, axi4_slave_members, forward
+from ..linalg.banks import BUS_READ_LATENCY
 from ..linalg.engine import Engine
 from .regmap import BUS_ID_WIDTH, ukf_map
 from .steps import programs, schedules
@@ -49,9 +50,9 @@ __all__ = ["Ukf", "EngineCore", "Backend"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
 
-#: The back end's read latency on the word bus: the buffer's word is registered behind the
-#: block RAM before it goes to the AXI front end.
-READ_LATENCY = 2
+#: The back end's read latency on the word bus: the engine's memory port's (the buffer's word
+#: comes from the register behind its block RAM).
+READ_LATENCY = BUS_READ_LATENCY
 
 
 class Backend(wiring.Component):
@@ -201,14 +202,14 @@ class Backend(wiring.Component):
                         m.d.sync += [reg_data.eq(values[name]), err.eq(0)]
                 with m.Default():  # the buffer, or a hole
                     m.d.sync += [reg_data.eq(0), err.eq(~r_buf)]
-        # the memory's word (latency 1) and the registers' registered once more: a block RAM's
-        # clock-to-output is most of a cycle, so nothing but the half select follows it
+        # the memory's word comes from the register behind its block RAM (latency 2); the
+        # registers' word is registered once more to meet it
         elem = eng.mem_rdata
-        buf_r, reg_r, from_buf_r, err_r = Signal(32), Signal(32), Signal(), Signal()
-        m.d.sync += [buf_r.eq(Mux(half, elem[32:], elem[:32]) if words == 2 else elem),
-                     reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
+        half_r, reg_r, from_buf_r, err_r = Signal(), Signal(32), Signal(), Signal()
+        m.d.sync += [half_r.eq(half), reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
+        buf_word = Mux(half_r, elem[32:], elem[:32]) if words == 2 else elem
         # (a refused read's data is the front end's to zero)
-        m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_r, reg_r)), bus.r_err.eq(err_r)]
+        m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_word, reg_r)), bus.r_err.eq(err_r)]
         return m
 
 

@@ -8,7 +8,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from kfgen.gen.verilog import emit
-from kfgen.hdl.linalg.banks import BankedMemory
+from kfgen.hdl.linalg.banks import BUS_READ_LATENCY, BankedMemory
 from kfgen.hdl.linalg.microcode import READ_LATENCY, Geometry
 from kfgen.sim.toolchain import yosys_cmd
 
@@ -26,16 +26,17 @@ def test_lanes_ports_and_bus_retry():
     """The engine's lanes reach the RAM a cycle after their request on the port they name,
     and a read's word is on its lane READ_LATENCY cycles after it; reads of one word share a
     port. The bus's lanes take a port the engine leaves free (its write a cycle after the
-    request, its read in that cycle); a bus read of a word some lane writes in that RAM
+    request, its read in that cycle, its word two cycles later); a bus read of a word some lane writes in that RAM
     cycle, or whose bank has no free port, is not served (its block-RAM word would be undefined, or there is no port); the retry
     reads the new word. A flush drops the requests of its cycle."""
     dut = banks()
     unit_rd, bus_rd = dut.rd[:2], dut.rd[-1]
     unit_wr, bus_wr = dut.wr[:2], dut.wr[-1]
-    assert READ_LATENCY == 3
+    assert READ_LATENCY == 3 and BUS_READ_LATENCY == 2
 
     async def tb(ctx):
         log = []  # per cycle: (rd_ok, bus data after the cycle, unit lanes' data after it)
+        words = []  # (cycle of a bus read, the word it must give): checked at the end
 
         async def cycle(flush=0, **lanes):
             for lane in (*dut.rd, *dut.wr):
@@ -52,37 +53,46 @@ def test_lanes_ports_and_bus_retry():
             ok = ctx.get(dut.rd_ok)
             await ctx.tick()
             log.append((ok, ctx.get(bus_rd.data), [ctx.get(r.data) for r in unit_rd]))
-            return log[-1][:2]
+            return ok
 
-        assert await cycle(bus=(bus_rd, 5)) == (1, 0x105)
+        async def read(a, word, **lanes):
+            """A bus read of ``a`` (with other lanes) that is served and gives ``word``."""
+            assert await cycle(bus=(bus_rd, a), **lanes) == 1
+            words.append((len(log) - 1, word))
+
+        await read(5, 0x105)
         # the engine writes word 6: in the RAM the next cycle, when a bus read of it retries
         await cycle(w=(unit_wr[0], 6, 1, 0xAAAA))
-        assert (await cycle(bus=(bus_rd, 6)))[0] == 0
-        assert await cycle(bus=(bus_rd, 6)) == (1, 0xAAAA)
+        assert await cycle(bus=(bus_rd, 6)) == 0
+        await read(6, 0xAAAA)
         # the bus writes word 8 while it reads it (a read and a write burst meeting): the
         # write is registered, so the read takes the old word; the next one retries
-        assert await cycle(bus=(bus_rd, 8), w=(bus_wr, 8, 0, 0xBBBB)) == (1, 0x108)
-        assert (await cycle(bus=(bus_rd, 8)))[0] == 0
-        assert await cycle(bus=(bus_rd, 8)) == (1, 0xBBBB)
+        await read(8, 0x108, w=(bus_wr, 8, 0, 0xBBBB))
+        assert await cycle(bus=(bus_rd, 8)) == 0
+        await read(8, 0xBBBB)
         # two engine reads of word 12 on port 1 (a broadcast), then a bus read of word 10 of
         # the same bank takes port 0 beside them; the engine's word three cycles later
         n = len(log)
         await cycle(r0=(unit_rd[0], 12, 1), r1=(unit_rd[1], 12, 1))
-        assert await cycle(bus=(bus_rd, 10)) == (1, 0x10A)
+        await read(10, 0x10A)
         await cycle()
         assert log[n + 2][2] == [0x10C, 0x10C]
         # an engine read (port 1) and write (port 0) of other words of a bank: the bus's read
         # of that bank is not served; the engine's read and write are
         n = len(log)
         await cycle(r0=(unit_rd[0], 16, 1), w=(unit_wr[0], 18, 0, 0xDDDD))
-        assert (await cycle(bus=(bus_rd, 14)))[0] == 0
+        assert await cycle(bus=(bus_rd, 14)) == 0
         await cycle()
         assert log[n + 2][2][0] == 0x110
-        assert await cycle(bus=(bus_rd, 18)) == (1, 0xDDDD)
+        await read(18, 0xDDDD)
         # a write requested with flush high is dropped
         await cycle(flush=1, w=(unit_wr[0], 20, 0, 0xEEEE))
         await cycle()
-        assert await cycle(bus=(bus_rd, 20)) == (1, 0x114)
+        await read(20, 0x114)
+        for _ in range(BUS_READ_LATENCY - 1):
+            await cycle()
+        # a bus read's word is on data BUS_READ_LATENCY cycles after its request
+        assert [log[k + BUS_READ_LATENCY - 1][1] for k, _ in words] == [w for _, w in words]
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
@@ -115,10 +125,10 @@ def stats(tmp_path_factory):
 ])
 def test_each_bank_is_one_block_ram(stats, family, ram, per_bank, ff):
     """Each bank a true dual-port block RAM (both ports reading and writing), not flip-flops:
-    the only registers left are the lanes' and the ports' (253: per engine read lane its row,
+    the only registers left are the lanes' and the ports' (255: per engine read lane its row,
     bank, port, port hits and data select twice, 15; per engine write lane 11, and one word
-    for the unit; the bus's write, 39; the bus read's data select; each port's word, 128),
+    for the unit; the bus's write, 39; the bus read's data select twice, 4; each port's word, 128),
     far below the 2,048 bits of the memory."""
     cells = stats[family]
     assert cells.get(ram, 0) == per_bank * G.banks, cells
-    assert cells.get(ff, 0) <= 253, cells
+    assert cells.get(ff, 0) <= 255, cells

@@ -9,6 +9,7 @@ from amaranth.sim import Simulator
 from kfgen.hdl.arith.float.div import FloatDiv
 from kfgen.hdl.arith.float.fma import FloatFMA
 from kfgen.hdl.arith.float.sqrt import FloatSqrt
+from kfgen.hdl.linalg.banks import BUS_READ_LATENCY
 from kfgen.hdl.linalg.engine import OVERHEAD, Engine
 from kfgen.hdl.linalg.schedule import Machine, schedule
 from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
@@ -59,10 +60,11 @@ class TB:
 
     async def memory(self):
         out = []
-        for a in range(self.lay.size):  # read latency 1
-            self.ctx.set(self.dut.mem_raddr, a)
+        for a in range(self.lay.size + BUS_READ_LATENCY - 1):  # word a after tick a + 1
+            self.ctx.set(self.dut.mem_raddr, min(a, self.lay.size - 1))
             await self.ctx.tick()
-            out.append(self.ctx.get(self.dut.mem_rdata))
+            if a >= BUS_READ_LATENCY - 1:
+                out.append(self.ctx.get(self.dut.mem_rdata))
         return out
 
     async def step(self, name):
