@@ -155,7 +155,14 @@ class BankedMemory(wiring.Component):
                                  data=Signal(self._width, name="bus_wr_data"))
         m.d.sync += [bus_wr.en.eq(bus_wr_lane.en), bus_wr.addr.eq(bus_wr_lane.addr),
                      bus_wr.data.eq(bus_wr_lane.data)]
-        taken = [[_any([r.hit[b][p] for r in reads + writes]) for p in range(2)] for b in range(banks)]
+        # the ports the engine's lanes take in the RAM cycle, registered as one bit each (not
+        # an OR of every lane's registered hit: the bus read's rd_ok, and the AXI front end's
+        # issue behind it, follow)
+        taken = [[Signal(name=f"taken_b{b}p{p}") for p in range(2)] for b in range(banks)]
+        for b in range(banks):
+            for p in range(2):
+                m.d.sync += taken[b][p].eq(_any([lane.en & ~self.flush & (lane.addr.bank == b) & (lane.port == p)
+                                                 for lane in rd[:-1] + wr[:-1]]))
         bus_w = [bus_wr.en & (bus_wr.addr.bank == b) & ~taken[b][0] for b in range(banks)]
         bus_r = [[None, None] for _ in range(banks)]
         for b in range(banks):

@@ -205,9 +205,13 @@ class Backend(wiring.Component):
         # the memory's word comes from the register behind its block RAM (latency 2); the
         # registers' word is registered once more to meet it
         elem = eng.mem_rdata
-        half_r, reg_r, from_buf_r, err_r = Signal(), Signal(32), Signal(), Signal()
-        m.d.sync += [half_r.eq(half), reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
-        buf_word = Mux(half_r, elem[32:], elem[:32]) if words == 2 else elem
+        reg_r, from_buf_r, err_r = Signal(32), Signal(), Signal()
+        m.d.sync += [reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
+        buf_word = elem
+        if words == 2:
+            half_r = Signal()
+            m.d.sync += half_r.eq(half)
+            buf_word = Mux(half_r, elem[32:], elem[:32])
         # (a refused read's data is the front end's to zero)
         m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_word, reg_r)), bus.r_err.eq(err_r)]
         return m
