@@ -73,8 +73,10 @@ class BankedMemory(wiring.Component):
     returns the old word across ports, but Lattice ECP5's (DP16KD) does not, and a RAM that
     promised it would be built from flip-flops there. No lane ever takes such a word: the
     scheduler writes a word only after its last read and reads it from the cycle after the
-    write on, and the bus's read in such a cycle is not served (``rd_ok`` low; it retries,
-    and reads the new word). Simulators return the old word there.
+    write on, and the bus's read is not served in a RAM cycle in which an engine lane writes
+    its bank (a bank, not the word: a registered bit a bank keeps that decision short) or
+    the bus's write its word (``rd_ok`` low; it retries, and reads the new word). Simulators
+    return the old word there.
 
     Parameters
     ----------
@@ -96,7 +98,8 @@ class BankedMemory(wiring.Component):
     wr : In(WriteLane).array(writes)
     rd_ok : Out(1)
         The bus's read is served this cycle: a port of its bank is free of the engine's
-        lanes (and of the bus's write) and no lane writes its word in this RAM cycle. When
+        lanes (and of the bus's write), no engine lane writes that bank and the bus's write
+        does not write the word in this RAM cycle. When
         it is not, its ``data`` next cycle is some other word, and the reader retries.
     flush : In(1)
         The engine's writes asked for in this cycle and in the one before are dropped (a
@@ -119,20 +122,16 @@ class BankedMemory(wiring.Component):
         bus_rd, bus_wr = rd[-1], wr[-1]
 
         def register(lane, name, write):
-            """The lane's request, registered: ``hit[bank][port]``, the row, and a write's
-            ``en`` and bank (for the bus's read) or a read's bank and port (for its data)."""
+            """The lane's request, registered: ``hit[bank][port]``, the row, and a read's
+            bank and port (for its data)."""
             en = lane.en & ~self.flush
             r = SimpleNamespace(row=Signal(g.row_bits, name=f"{name}_row"),
-                                bank=Signal(g.bank_bits, name=f"{name}_bank"),
                                 hit=[[Signal(name=f"{name}_b{b}p{p}") for p in range(2)]
                                      for b in range(banks)])
-            m.d.sync += [r.row.eq(lane.addr.row), r.bank.eq(lane.addr.bank)]
-            if write:
-                r.en = Signal(name=f"{name}_en")
-                m.d.sync += r.en.eq(en)
-            else:
-                r.port = Signal(name=f"{name}_port")
-                m.d.sync += r.port.eq(lane.port)
+            m.d.sync += r.row.eq(lane.addr.row)
+            if not write:
+                r.bank, r.port = Signal(g.bank_bits, name=f"{name}_bank"), Signal(name=f"{name}_port")
+                m.d.sync += [r.bank.eq(lane.addr.bank), r.port.eq(lane.port)]
             for b in range(banks):
                 for p in range(2):
                     m.d.sync += r.hit[b][p].eq(en & (lane.addr.bank == b) & (lane.port == p))
@@ -155,25 +154,30 @@ class BankedMemory(wiring.Component):
                                  data=Signal(self._width, name="bus_wr_data"))
         m.d.sync += [bus_wr.en.eq(bus_wr_lane.en), bus_wr.addr.eq(bus_wr_lane.addr),
                      bus_wr.data.eq(bus_wr_lane.data)]
-        # the ports the engine's lanes take in the RAM cycle, registered as one bit each (not
-        # an OR of every lane's registered hit: the bus read's rd_ok, and the AXI front end's
-        # issue behind it, follow)
+        # the ports the engine's lanes take in the RAM cycle, and the banks its lanes write,
+        # registered as one bit each (not an OR of every lane's registered hit): the bus
+        # read's rd_ok, and the AXI front end's issue behind it, follow, so the bus's address
+        # only selects a bank's bit
+        def per_bank(lanes, port=None):
+            return [_any([lane.en & ~self.flush & (lane.addr.bank == b) & (True if port is None else lane.port == port)
+                          for lane in lanes]) for b in range(banks)]
+
         taken = [[Signal(name=f"taken_b{b}p{p}") for p in range(2)] for b in range(banks)]
-        for b in range(banks):
-            for p in range(2):
-                m.d.sync += taken[b][p].eq(_any([lane.en & ~self.flush & (lane.addr.bank == b) & (lane.port == p)
-                                                 for lane in rd[:-1] + wr[:-1]]))
+        engine_writes = [Signal(name=f"written_b{b}") for b in range(banks)]
+        for p in range(2):
+            m.d.sync += [taken[b][p].eq(v) for b, v in enumerate(per_bank(rd[:-1] + wr[:-1], p))]
+        m.d.sync += [w.eq(v) for w, v in zip(engine_writes, per_bank(wr[:-1]))]
         bus_w = [bus_wr.en & (bus_wr.addr.bank == b) & ~taken[b][0] for b in range(banks)]
         bus_r = [[None, None] for _ in range(banks)]
+        readable = []  # a bank the bus may read in this RAM cycle: a port free, nothing written
         for b in range(banks):
             want = bus_rd.en & (bus_rd.addr.bank == b)
             bus_r[b][1] = want & ~taken[b][1]
             bus_r[b][0] = want & taken[b][1] & ~taken[b][0] & ~bus_w[b]
-        written = _any([w.en & (w.row == bus_rd.addr.row) & (w.bank == bus_rd.addr.bank)
-                        for w in writes]) | \
-            (bus_wr.en & (bus_wr.addr.as_value() == bus_rd.addr.as_value()))
-        served = _any([bus_r[b][p] for b in range(banks) for p in range(2)])
-        m.d.comb += self.rd_ok.eq(served & ~written)
+            readable.append((~taken[b][1] | (~taken[b][0] & ~bus_w[b])) & ~engine_writes[b])
+        readable = Array(readable + readable[-1:] * ((1 << g.bank_bits) - banks))
+        m.d.comb += self.rd_ok.eq(bus_rd.en & readable[bus_rd.addr.bank] &
+                                  ~(bus_wr.en & (bus_wr.addr.as_value() == bus_rd.addr.as_value())))
 
         port_data = []
         for b in range(banks):

@@ -59,9 +59,9 @@ class Engine(wiring.Component):
     :data:`~.banks.BUS_READ_LATENCY`: the block RAM and the register behind it) when
     ``mem_rok`` was high with it. The engine's lanes come first: while busy a bus read is served only
     where the step leaves its bank a port (``mem_rok``; else the reader retries), and a bus
-    write may be lost (the bus front end refuses them). A bus read of a word written in the
-    same cycle (by the step or the bus) is not served either: the block RAM leaves that word
-    undefined, and the retry reads the new word. Constants are in the memory from
+    write may be lost (the bus front end refuses them). A bus read is not served either in a
+    cycle in which the step writes its bank, or the bus its word: the block RAM leaves a
+    word written in the cycle of its read undefined, and the retry reads the new word. Constants are in the memory from
     configuration; nothing resets the memory.
 
     Parameters

@@ -12,7 +12,7 @@ field position used here. Bus rules beyond the map's (documented in the map and 
 generated ``TOP.md``):
 
 - **Reads are always answered.** While busy, a buffer read waits for a cycle in which the
-  step leaves its memory bank a port and does not write the word (the engine's ``mem_rok``;
+  step leaves its memory bank a port and writes nothing to it (the engine's ``mem_rok``;
   the R channel then simply stalls, as AXI allows) and returns the word as it is then: a
   region the step does not write (``Q``, ``R``, ``z`` in ``sig_gen``, say) reads as
   written, one it writes reads some state of the step. Register reads (``STATUS`` above
@@ -170,7 +170,10 @@ class Backend(wiring.Component):
 
         # ------------------------------------------------------------- reads (latency 2)
         r_buf, r_elem, r_half = buffer_at(bus.r_addr)
-        m.d.comb += [eng.mem_raddr.eq(r_elem), bus.r_wait.eq(r_buf & ~eng.mem_rok)]
+        # a read waits for the memory anywhere in the buffer's window (a hole past the last
+        # region waits too, then answers SLVERR): the window is a few address bits, the
+        # buffer's end a comparison, and the front end's issue follows this
+        m.d.comb += [eng.mem_raddr.eq(r_elem), bus.r_wait.eq((bus.r_addr[kb:] == 1) & ~eng.mem_rok)]
 
         def pack(bits):
             """A 32-bit word of {lsb: value}."""

@@ -23,9 +23,9 @@ NETLISTS = {
     "fpu_mul": "4e63bc87d479266d52cb587dc406803a3dd42ba600efc6751d89ae68e2c47aee",
     "fpu_sqrt": "0c09a7a131a064d0a361ab68fea53983e4f94afcb08c97acb9994081230d7988",
     "fpu_sub": "344792bc3ff97dda64640f5e639075a0c531c82e6cee8ab02077f81bf4721fdc",
-    "imm": "f575f1183d3476d31ce6e695285e3c5d6ed143ea4884befc63df84d5d3756f44",
+    "imm": "e172b2f77b0cdce7e12f57e3b9f15e0830c114ecbbb679b885a44e1347b9a0ca",
     "schur": "103f85caa5d1c231b094147f014decdfcb5061a06228c15b80c5ce611eaa1ae5",
-    "ukf": "45707024283670fcd57cea97c4c372dc675fb58fca99a171e78da957a810eb78",
+    "ukf": "dcf287fd9c81cf33169e2291bd418492dc3bb82f5ccd634554e36405d3c35b8a",
 }
 
 EXAMPLES = [(core, ex) for core in discover().values() for ex in core.examples]
