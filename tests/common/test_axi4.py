@@ -18,6 +18,7 @@ from kfgen.sim.toolchain import lint
 from kfgen.sim.verilator import build, run_test
 
 import axi4_tb
+from conftest import VERILATOR_CACHE
 from axi4_tb import ADDR_WIDTH, ID, ID_VALUE, ID_WIDTH, MEM, MEM_WORDS, SCRATCH
 
 TOP = "axi4_test"
@@ -115,9 +116,11 @@ def test_lint(rtl):
 def sim(rtl):
     runs = rtl / "runs"
     runs.mkdir(exist_ok=True)
-    return build([rtl / f"{TOP}.v"], TOP, rtl / "sim_build"), runs, int(rtl.name[-1])
+    # the shared cache: one build a latency for both workers (the other waits for it)
+    return build([rtl / f"{TOP}.v"], TOP, VERILATOR_CACHE), runs, int(rtl.name[-1])
 
 
+@pytest.mark.verilator
 @pytest.mark.parametrize("tests", [["bursts", "fixed_bursts"], ["errors", "strobes", "raw_cases"],
                                    ["throughput", "stress"]], ids=lambda tests: tests[0])
 def test_cocotb(sim, tests):
