@@ -15,7 +15,8 @@ PACKAGING := pyproject.toml setup.py
 # The editable install maps hdl/ gen/ sim/ to kfgen.* with a meta path finder, and setuptools
 # reports that it did so as a warning of its own category InformationOnly, "Editable
 # installation." (pip shows it as a 10-line BuildBackendWarning). Only that notice is dropped;
-# every other warning and every error still shows.
+# every other warning and every error still shows. --no-compile: Python compiles the modules
+# a run imports when it imports them, not the whole 700 MB at install (20 s of the bootstrap).
 PIP       := PYTHONWARNINGS='ignore:Editable installation:UserWarning' $(PY) -m pip -q --disable-pip-version-check
 OUT       ?= out
 JOBS      ?= 2
@@ -28,11 +29,11 @@ $(RUNTIME): $(PACKAGING)
 	@$(PYTHON) -c 'import sys; sys.version_info >= (3, 11) or sys.exit("kfgen needs Python >= 3.11 (the pinned numpy, scipy and matplotlib do), and $(PYTHON) is %d.%d.%d: run make PYTHON=python3.11 (or newer)" % sys.version_info[:3])'
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
-	$(PIP) install -e .
+	$(PIP) install --no-compile -e .
 	@touch $@
 
 $(DEV): $(RUNTIME)
-	$(PIP) install -e '.[dev]'
+	$(PIP) install --no-compile -e '.[dev]'
 	@touch $@
 
 # Every core's example configurations (each core's descriptor lists them).
