@@ -66,10 +66,10 @@ def _installs(target, venv) -> list[str]:
 
 def test_verilog_installs_only_the_runtime(tmp_path):
     venv = tmp_path / "venv"
-    assert _installs("verilog", venv) == ["--upgrade pip", "-e ."]
-    assert _installs("test", venv) == ["--upgrade pip", "-e .", "-e '.[dev]'"]
+    assert _installs("verilog", venv) == ["--upgrade pip", "--no-compile -e ."]
+    assert _installs("test", venv) == ["--upgrade pip", "--no-compile -e .", "--no-compile -e '.[dev]'"]
     for target in ("test-full", "bench", "bench-fpu", "plots"):
-        assert _installs(target, venv)[-1] == "-e '.[dev]'", target
+        assert _installs(target, venv)[-1] == "--no-compile -e '.[dev]'", target
 
 
 def test_installs_are_redone_when_the_packaging_changes(tmp_path):
@@ -78,23 +78,23 @@ def test_installs_are_redone_when_the_packaging_changes(tmp_path):
     runtime, dev = venv / ".kfgen-runtime", venv / ".kfgen-dev"
     runtime.touch()
     assert _installs("verilog", venv) == []
-    assert _installs("test", venv) == ["-e '.[dev]'"]
+    assert _installs("test", venv) == ["--no-compile -e '.[dev]'"]
     dev.touch()
     assert _installs("test", venv) == []
     for changed in ("pyproject.toml", "setup.py"):
         os.utime(runtime, (0, (ROOT / changed).stat().st_mtime - 10))
         os.utime(dev, (0, (ROOT / changed).stat().st_mtime - 5))
-        assert _installs("verilog", venv) == ["--upgrade pip", "-e ."], changed
-        assert _installs("test", venv)[-1] == "-e '.[dev]'", changed
+        assert _installs("verilog", venv) == ["--upgrade pip", "--no-compile -e ."], changed
+        assert _installs("test", venv)[-1] == "--no-compile -e '.[dev]'", changed
         runtime.touch(), dev.touch()
 
 
 def test_editable_install_prints_nothing(tmp_path):
-    """The Makefile's own ``pip install -e .`` line, run in a copy of the project against a
+    """The Makefile's own ``pip install --no-compile -e .`` line, run in a copy of the project against a
     scratch venv: no warning (setuptools' editable-install notice among them), no error."""
     venv = tmp_path / "venv"
     (line,) = [line for line in _make("-n", "verilog", f"VENV={venv}").stdout.splitlines()
-               if line.endswith(" install -e .")]
+               if line.endswith(" install --no-compile -e .")]
     # The scratch venv sees the project venv's packages (pip, amaranth, numpy) through a .pth,
     # all but kfgen itself, so nothing is downloaded but the build backend.
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", venv], check=True)
