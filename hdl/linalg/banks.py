@@ -159,8 +159,9 @@ class BankedMemory(wiring.Component):
         # read's rd_ok, and the AXI front end's issue behind it, follow, so the bus's address
         # only selects a bank's bit
         def per_bank(lanes, port=None):
-            return [_any([lane.en & ~self.flush & (lane.addr.bank == b) & (True if port is None else lane.port == port)
-                          for lane in lanes]) for b in range(banks)]
+            return [_any([lane.en & ~self.flush & (lane.addr.bank == b)
+                          & (1 if port is None else lane.port == port) for lane in lanes])
+                    for b in range(banks)]
 
         taken = [[Signal(name=f"taken_b{b}p{p}") for p in range(2)] for b in range(banks)]
         engine_writes = [Signal(name=f"written_b{b}") for b in range(banks)]

@@ -57,12 +57,12 @@ class Engine(wiring.Component):
     The bus port reads and writes the memory, one read and one write a cycle: ``mem_rdata``
     holds the word at ``mem_raddr`` of two cycles before (read latency 2,
     :data:`~.banks.BUS_READ_LATENCY`: the block RAM and the register behind it) when
-    ``mem_rok`` was high with it. The engine's lanes come first: while busy a bus read is served only
-    where the step leaves its bank a port (``mem_rok``; else the reader retries), and a bus
-    write may be lost (the bus front end refuses them). A bus read is not served either in a
-    cycle in which the step writes its bank, or the bus its word: the block RAM leaves a
-    word written in the cycle of its read undefined, and the retry reads the new word. Constants are in the memory from
-    configuration; nothing resets the memory.
+    ``mem_rok`` was high with it. The engine's lanes come first: while busy a bus read is
+    served only where the step leaves its bank a port (``mem_rok``; else the reader
+    retries), and a bus write may be lost (the bus front end refuses them). A bus read is
+    not served either in a cycle in which the step writes its bank, or the bus its word: the
+    block RAM leaves a word written in the cycle of its read undefined, and the retry reads
+    the new word. Constants are in the memory from configuration; nothing resets the memory.
 
     Parameters
     ----------
