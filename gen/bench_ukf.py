@@ -322,7 +322,9 @@ def main(argv=None) -> int:
                          "div_sqrt": params.div_sqrt})
         engine = manifest["engine"]
         bound = bounds(UkfParams(), engine)
-        chains = {}  # by the unit latencies (P = 1's iterative square root is shorter)
+        # each P's chain bound, by its unit latencies (P = 1's iterative square root is
+        # shorter); the last row's is the one just computed
+        chains = {tuple(engine[k] for k in LATENCIES): sum(bound["chain"].values())}
         for r in rows:
             lat = tuple(r["engine"][k] for k in LATENCIES)
             if lat not in chains:
