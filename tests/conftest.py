@@ -21,6 +21,8 @@ def pytest_addoption(parser):
 def pytest_collection_modifyitems(config, items):
     # Verilator tests (minutes each) first: started last, one would leave the other
     # pytest-xdist worker idle at the end. The sort is stable, so every worker agrees.
+    # Tests that share a module-scoped fixture (a generated core, a synthesis) or a Verilator
+    # build carry one xdist_group, so that one worker makes it (tests/test_xdist_groups.py).
     items.sort(key=lambda it: "verilator" not in it.keywords)
     # Long sweeps are deselected, not skipped, from the default regression.
     if config.getoption("--full"):

@@ -107,6 +107,7 @@ def rtl(request, build_root):
     return out
 
 
+@pytest.mark.xdist_group("axi4")
 def test_lint(rtl):
     rc, messages = lint(rtl / f"{TOP}.v")
     assert rc == 0 and not messages, "\n".join(messages)
@@ -123,6 +124,7 @@ def sim(rtl):
 @pytest.mark.verilator
 @pytest.mark.parametrize("tests", [["bursts", "fixed_bursts"], ["errors", "strobes", "raw_cases"],
                                    ["throughput", "stress"]], ids=lambda tests: tests[0])
+@pytest.mark.xdist_group("axi4")
 def test_cocotb(sim, tests):
     """Every case of :mod:`axi4_tb`, in three simulator runs of one build."""
     model, run_dir, lat = sim

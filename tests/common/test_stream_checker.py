@@ -67,6 +67,7 @@ def run(source, fault):
              {"KFGEN_TB_FAULT": fault})
 
 
+@pytest.mark.xdist_group("stream_checker")
 def test_correct_source_passes(source):
     run(source, "none")
 
@@ -77,6 +78,7 @@ def test_correct_source_passes(source):
     ("tuser", "payload changed while valid waited for ready: tuser"),
     ("tvalid", "valid fell before the transfer"),
 ])
+@pytest.mark.xdist_group("stream_checker")
 def test_broken_source_fails(source, fault, message):
     assert fault in FAULTS
     with pytest.raises(AssertionError, match="StreamProtocolError: m_axis, cycle [0-9]+: " + message):

@@ -18,6 +18,9 @@ import pytest
 
 from conftest import ROOT, kfgen
 
+# One worker builds the wheel and its venv for every test here.
+pytestmark = pytest.mark.xdist_group("wheel")
+
 TOP = ("hdl", "gen", "sim")  # installed as kfgen.hdl, kfgen.gen, kfgen.sim
 
 

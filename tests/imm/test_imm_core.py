@@ -27,6 +27,7 @@ def rtl(build_root):
     return out
 
 
+@pytest.mark.xdist_group("imm_core")
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob("imm_small.*"))
     assert names == sorted(f"imm_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc"))
@@ -46,6 +47,7 @@ def test_files_and_manifest(rtl):
     assert "#define" in (rtl / "imm_small.h").read_text()
 
 
+@pytest.mark.xdist_group("imm_core")
 def test_lint(rtl):
     rc, messages = lint(rtl / "imm_small.v")
     assert rc == 0 and not messages, "\n".join(messages)

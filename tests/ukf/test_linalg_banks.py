@@ -132,6 +132,7 @@ def stats(tmp_path_factory):
     ("ecp5", "DP16KD", 2, "TRELLIS_FF"),  # 32 bits: two 18-bit wide halves
     ("xilinx", "RAMB36E1", 1, "FDRE"),  # 32 bits on both ports: a RAMB18's TDP is 18 wide
 ])
+@pytest.mark.xdist_group("linalg_banks")
 def test_each_bank_is_one_block_ram(stats, family, ram, per_bank, ff):
     """Each bank a true dual-port block RAM (both ports reading and writing), not flip-flops:
     the only registers left are the lanes' and the ports' (257: per engine read lane its row,

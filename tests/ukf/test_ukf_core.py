@@ -27,6 +27,7 @@ def rtl(build_root):
     return out
 
 
+@pytest.mark.xdist_group("ukf_core")
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}.*"))
     assert names == sorted(f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc"))
@@ -40,6 +41,7 @@ def test_files_and_manifest(rtl):
     assert "irq" in {p["name"] for p in man["ports"]}
 
 
+@pytest.mark.xdist_group("ukf_core")
 def test_lint(rtl):
     rc, messages = lint(rtl / f"{TOP}.v")
     assert rc == 0 and not messages, "\n".join(messages)
