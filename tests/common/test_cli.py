@@ -12,7 +12,7 @@ from kfgen.gen.cores import discover
 from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import RANGES, CastellaParams
 
-from conftest import kfgen
+from conftest import kfgen, kfgen_in_process
 
 FIELD_PORTS = ("s_axis_tdata", "s_axis_tuser", "m_axis_tdata", "m_axis_tuser")
 
@@ -69,7 +69,7 @@ ERRORS = [
 def test_bad_input(tmp_path, case, args, param):
     out = tmp_path / "out"
     with_output = args[:1] in (["castella"], ["fpu"]) and case != "no-output"
-    _check_error(kfgen(*args, *(["-o", out] if with_output else []), check=False), param)
+    _check_error(kfgen_in_process(*args, *(["-o", out] if with_output else [])), param)
     assert not out.exists(), "a rejected command must write nothing"
 
 
@@ -109,7 +109,7 @@ def test_bad_config(tmp_path, content, param):
     elif content is not None:
         cfg.write_text(content)
     out = tmp_path / "out"
-    proc = kfgen("castella", "--config", cfg, "-o", out, check=False)
+    proc = kfgen_in_process("castella", "--config", cfg, "-o", out)
     _check_error(proc, param)
     if param.startswith("--") and param != "--config":
         assert "cfg.toml" in proc.stderr, "a bad value from a file names the file"

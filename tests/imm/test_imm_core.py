@@ -14,7 +14,7 @@ from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from conftest import VERILATOR_CACHE, kfgen
+from conftest import VERILATOR_CACHE, kfgen, kfgen_in_process
 
 TB = "kfgen.sim.imm.tb"
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]
@@ -64,7 +64,7 @@ def test_lint(rtl):
     (["--address-width", "5"], "--address-width: "),
 ])
 def test_bad_values_exit_2(tmp_path, args, says):
-    proc = kfgen("imm", *args, "-o", tmp_path / "x", check=False)
+    proc = kfgen_in_process("imm", *args, "-o", tmp_path / "x")
     assert proc.returncode == 2 and proc.stderr.startswith(f"kfgen: error: {says}")
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
 

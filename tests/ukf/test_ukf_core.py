@@ -13,7 +13,7 @@ from kfgen.hdl.ukf.steps import schedules
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from conftest import VERILATOR_CACHE, kfgen
+from conftest import VERILATOR_CACHE, kfgen, kfgen_in_process
 
 TOP = "ukf_small"
 SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
@@ -69,7 +69,7 @@ def test_no_irq(tmp_path, how):
     (["--address-width", "5"], "--address-width: "),
 ])
 def test_bad_values_exit_2(tmp_path, args, says):
-    proc = kfgen("ukf", *args, "-o", tmp_path / "x", check=False)
+    proc = kfgen_in_process("ukf", *args, "-o", tmp_path / "x")
     assert proc.returncode == 2 and proc.stderr.startswith(f"kfgen: error: {says}")
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
 
