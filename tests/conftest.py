@@ -48,15 +48,12 @@ def kfgen(*args, check=True, env=None):
 def kfgen_in_process(*args):
     """``kfgen ARGS`` through the command line's own ``main`` in this process (no interpreter
     and Amaranth start-up, 0.6 s a call): the CompletedProcess the installed command would
-    give. For the many rejected-argument cases; tests that run the installed command keep
-    the entry point itself under test."""
+    give. For the many rejected-argument cases and the lint pool's generation; tests that
+    run the installed command keep the entry point itself under test."""
     from kfgen.gen.cli import main
 
     with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as err:
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as exc:  # argparse's own exits, were there any left
-            code = exc.code if isinstance(exc.code, int) else 1
+        code = main([str(a) for a in args])
     return subprocess.CompletedProcess(["kfgen", *map(str, args)], code, out.getvalue(), err.getvalue())
 
 

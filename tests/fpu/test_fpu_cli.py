@@ -2,8 +2,6 @@
 # (Some tests build units with parameters the units must reject.)
 """`kfgen fpu`: parameters, errors, manifest, and the generated Verilog in Icarus and Verilator."""
 
-import contextlib
-import io
 import json
 import multiprocessing
 import subprocess
@@ -223,11 +221,9 @@ def _lint_configs(fmt):
 def _generate_and_lint(args, out):
     """Warnings of ``verilator -Wall --lint-only`` with the core's own waivers on the core that
     ``kfgen fpu ARGS`` writes into ``out`` (in a worker process)."""
-    from kfgen.gen.cli import main
-
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
-        if main(["fpu", *args, "--name", "u", "-o", out]) != 0:
-            return [err.getvalue().strip()]
+    proc = kfgen_in_process("fpu", *args, "--name", "u", "-o", out)
+    if proc.returncode != 0:
+        return [proc.stderr.strip()]
     rc, messages = lint(f"{out}/u.v")  # what `kfgen lint` runs
     return messages or ([f"verilator exit status {rc}"] if rc else [])
 
