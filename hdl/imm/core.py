@@ -1,11 +1,11 @@
 """The IMM core: the linear-algebra engine running one IMM iteration a start, behind the same
-AXI4 slave, registers and buffer rules as the UKF core (:mod:`kfgen.hdl.ukf.core`, whose
+AXI4 slave, registers and buffer rules as every engine core (:mod:`kfgen.hdl.engine.core`, whose
 module docstring gives the bus rules; ``x`` and ``P``, the combined estimate, are read-only).
 """
 
 from __future__ import annotations
 
-from ..ukf.core import EngineCore
+from ..engine.core import EngineCore
 from .regmap import imm_map
 from .steps import programs, schedules
 

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
+from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
+from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
 
 __all__ = ["CORE"]
 
 
 def _docs() -> dict[str, Doc]:
-    from ..ukf.descriptor import engine_docs
     return {
         "models": Doc("models R: filters mixed by the IMM, each with its own F, Q, H, R", "",
                       f"an integer in 2..{MODELS_MAX}"),
@@ -32,27 +33,15 @@ def _build(params):
 
 def _extra(params, core) -> dict:
     from kfgen.gen.regdoc import map_manifest
-    from kfgen.hdl.linalg.schedule import chain_bound
-    from kfgen.hdl.linalg.store import store_size
 
     sched = core.schedules["iterate"]
-    layout, mc = sched.program.layout, sched.machine
-    store = store_size([sched], layout.size)
+    mc = sched.machine
     return {
         **map_manifest(core.regmap),
-        "cycles": {"iterate": core.cycles("iterate")},
-        "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
-                             "first edge after which STATUS.done reads 1, both counted; irq rises on the "
-                             "next edge",
+        **engine_manifest(core),
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),
                    "chain": chain_bound(sched.program, mc)},
-        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
-                   "sqrt_latency": mc.sqrt_latency, "exp_latency": mc.exp_latency,
-                   "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
-                   "memory_words": layout.size,
-                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
-                                     "bits": store.bits}},
     }
 
 
@@ -61,11 +50,6 @@ def _documents(params) -> dict[str, str]:
 
     from .regmap import imm_map
     return documents(imm_map(params), params.name)
-
-
-def _waivers(params) -> str:
-    from ..ukf.descriptor import _waivers as engine_waivers
-    return engine_waivers(params)
 
 
 def _smoke(params, manifest):
@@ -85,7 +69,7 @@ CORE = CoreDescriptor(
     extra=_extra,
     examples=({},),
     documents=_documents,
-    waivers=_waivers,
+    waivers=engine_waivers,
     bench="kfgen.gen.bench_imm",
     smoke=_smoke,
 )

@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
-from ..ukf.params import check_bus, check_div_sqrt, check_format
+from ..engine.params import check_bus, check_div_sqrt, check_format
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 

@@ -1,16 +1,16 @@
 """The IMM core's registers and memory buffer, declared once as data (the classes and the
-placement rules of :mod:`kfgen.hdl.ukf.regmap`: registers from 0x0, the buffer at the next
+placement rules of :mod:`kfgen.hdl.engine.regmap`: registers from 0x0, the buffer at the next
 power of two, regions in the engine's order with no gaps).
 
 Model matrices are stacked model by model: ``F`` is an ``R n x n`` matrix whose rows
 ``r n .. r n + n - 1`` are model r's F (likewise ``Q``, ``P_model``; ``H`` and ``R`` by
 ``d`` rows); ``x_model`` holds model r's state in row r. One ``CTRL.start`` runs a whole IMM
-iteration: mixing, the R Kalman filters and the combination (:mod:`kfgen.hdl.linalg.imm_steps`).
+iteration: mixing, the R Kalman filters and the combination (:mod:`kfgen.hdl.imm.programs`).
 """
 
 from __future__ import annotations
 
-from ..ukf.regmap import Field, Register, RegisterMap, place_map, status_registers
+from ..engine.regmap import Field, Register, RegisterMap, place_map, status_registers
 
 __all__ = ["imm_map", "CORE_ID", "MAP_VERSION"]
 
@@ -56,7 +56,7 @@ def _registers(params) -> tuple[Register, ...]:
 
 
 def regions(params) -> tuple[tuple[str, int, int, str, str], ...]:
-    """(name, rows, cols, access, desc) in buffer order: the engine's (imm_steps)."""
+    """(name, rows, cols, access, desc) in buffer order: the engine's (programs)."""
     R, n, d = params.R, params.n, params.d
     return (
         ("pi", R, R, "rw", "transition matrix: pi[i][j] the probability of a switch from model i to model j "

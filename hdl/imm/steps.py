@@ -9,9 +9,9 @@ from __future__ import annotations
 import dataclasses
 
 from ..arith.float.exp import FloatExp
-from ..linalg.imm_steps import ImmPrograms, ImmSizes, build_imm
-from ..linalg.schedule import schedule
-from ..ukf.steps import machine as ukf_machine
+from ..engine.machine import machine as engine_machine
+from ..engine.machine import schedules as engine_schedules
+from .programs import ImmPrograms, ImmSizes, build_imm
 
 __all__ = ["programs", "machine", "schedules"]
 
@@ -22,13 +22,12 @@ def programs(params) -> ImmPrograms:
 
 
 def machine(params):
-    """As the UKF's (:func:`kfgen.hdl.ukf.steps.machine`: P PEs, ``params.banks`` banks, the
+    """The engine's (:func:`kfgen.hdl.engine.machine.machine`: P PEs, ``params.banks`` banks, the
     divider and square root of ``params.div_sqrt``), with the exponential's pipeline."""
-    return dataclasses.replace(ukf_machine(params), exp_latency=FloatExp(params.fmt).latency)
+    return dataclasses.replace(engine_machine(params), exp_latency=FloatExp(params.fmt).latency)
 
 
 def schedules(params, progs: ImmPrograms | None = None) -> dict:
     """``{"iterate": Schedule}``."""
     progs = progs or programs(params)
-    mc = machine(params)
-    return {name: schedule(prog, mc) for name, prog in progs.steps.items()}
+    return engine_schedules(progs.steps, machine(params))

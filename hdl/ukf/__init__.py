@@ -1,1 +1,2 @@
-"""The unscented Kalman filter core (Soh & Wu): parameters and its register and memory map."""
+"""The unscented Kalman filter core (Soh & Wu) on the linear-algebra engine: parameters, the
+three step programs, its register and memory map."""

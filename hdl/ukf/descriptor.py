@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
-from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX, SIZE_MAX, UkfParams
+from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
+from .params import SIZE_MAX, UkfParams
 
-__all__ = ["CORE", "engine_docs"]
+__all__ = ["CORE"]
 
 
 def _docs() -> dict[str, Doc]:
@@ -27,22 +28,6 @@ def _docs() -> dict[str, Doc]:
     }
 
 
-def engine_docs() -> dict[str, Doc]:
-    """The Docs of the parameters every engine core (UKF, IMM) shares: format, irq,
-    address_width, name."""
-    return {
-        "format": Doc("float format of every buffer word and of the arithmetic", "",
-                      f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
-                      "(any case)"),
-        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
-                   "on or off (in a --config file: irq = true or false)"),
-        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
-                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
-        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
-                    "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
-    }
-
-
 def _build(params):
     from .core import Ukf
     return Ukf(params)
@@ -50,25 +35,11 @@ def _build(params):
 
 def _extra(params, core) -> dict:
     from kfgen.gen.regdoc import map_manifest
-    from kfgen.hdl.linalg.store import store_size
-
-    scheds = core.schedules
-    layout = next(iter(scheds.values())).program.layout
-    store = store_size(list(scheds.values()), layout.size)
-    mc = next(iter(scheds.values())).machine
     return {
         **map_manifest(core.regmap),
-        "cycles": {name: core.cycles(name) for name in scheds},
-        "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
-                             "first edge after which STATUS.done reads 1, both counted; irq rises on the "
-                             "next edge",
+        **engine_manifest(core),
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
-        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register, "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
-                   "sqrt_latency": mc.sqrt_latency, "div_interval": mc.div_interval,
-                   "sqrt_interval": mc.sqrt_interval, "banks": mc.banks, "memory_words": layout.size,
-                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
-                                     "bits": store.bits}},
     }
 
 
@@ -78,18 +49,6 @@ def _documents(params) -> dict[str, str]:
 
     from .regmap import ukf_map
     return {**documents(ukf_map(params), params.name), **ukf_driver(params.name, params.format)}
-
-
-def _waivers(params) -> str:
-    from ..bus.axi4 import lint_waivers
-    text = lint_waivers(params.name)
-    width = params.fmt.width
-    if width < 32:  # binary16, bfloat16, narrow eEmM: one element in the low bits of a bus word
-        text += (f"\n// An element narrower than the 32-bit bus word sits in its low {width} bits: a write\n"
-                 f"// ignores the high bits (a read returns them as 0).\n"
-                 f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
-                 f"-match \"Bits of signal are not used: 'back_bus__w_data'?31:{width}?\"\n")
-    return text
 
 
 def _from_app(spec: str) -> dict:
@@ -114,7 +73,7 @@ CORE = CoreDescriptor(
     extra=_extra,
     examples=({},),
     documents=_documents,
-    waivers=_waivers,
+    waivers=engine_waivers,
     app=_from_app,
     bench="kfgen.gen.bench_ukf",
     smoke=_smoke,

@@ -14,57 +14,16 @@ import math
 from dataclasses import dataclass, fields
 
 from ..arith.float.format import FloatFormat
-from ..describe import ParamError, check_name
+from ..describe import ParamError
+from ..engine.params import check_bus, check_div_sqrt, check_format
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "check_div_sqrt",
-           "check_format", "check_bus"]
+__all__ = ["UkfParams", "SIZE_MAX"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
-#: Widest float format: one element is at most two 32-bit bus words.
-FORMAT_WIDTH_MAX = 64
-#: Widest AXI address the core accepts (a 32-bit processor's address space).
-ADDRESS_WIDTH_MAX = 32
-
-#: The shared divider and square root: one result bit a cycle, or one operation a cycle.
-DIV_SQRT = ("iterative", "pipelined")
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
-
-
-def check_div_sqrt(value, pes: int) -> str:
-    """``div_sqrt`` of an engine core: ``iterative`` or ``pipelined`` (any case); ``None`` is
-    iterative at P = 1, pipelined above."""
-    kind = value.lower() if isinstance(value, str) else value
-    if kind is None:
-        kind = DIV_SQRT[0] if pes == 1 else DIV_SQRT[1]
-    if kind not in DIV_SQRT:
-        raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {value!r}")
-    return kind
-
-
-def check_format(value) -> str:
-    """The float format of an engine core's buffer, by its name: at most two bus words."""
-    try:
-        fmt = FloatFormat.parse(value)
-    except ValueError as exc:
-        raise ParamError("format", f"must be binary16, bfloat16, binary32, binary64 or eEmM: {exc}") from None
-    if fmt.width > FORMAT_WIDTH_MAX:
-        raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
-                                   f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
-    return fmt.name
-
-
-def check_bus(params) -> None:
-    """``irq``, ``address_width`` (the range; whether the map fits is the map's check) and
-    ``name`` of an AXI core."""
-    if not isinstance(params.irq, bool):
-        raise ParamError("irq", f"must be true or false, not {params.irq!r}")
-    aw = params.address_width
-    if aw is not None and (isinstance(aw, bool) or not isinstance(aw, int) or not 1 <= aw <= ADDRESS_WIDTH_MAX):
-        raise ParamError("address_width", f"must be an integer in 1..{ADDRESS_WIDTH_MAX}, not {aw!r}")
-    check_name(params.name)
 
 
 @dataclass(frozen=True)

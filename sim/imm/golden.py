@@ -1,12 +1,12 @@
 """The IMM core's bit-exact golden model over a scenario: the core's own program
-(:mod:`kfgen.hdl.linalg.imm_steps`) executed word by word by :func:`kfgen.sim.linalg.exec.run`,
+(:mod:`kfgen.hdl.imm.programs`) executed word by word by :func:`kfgen.sim.linalg.exec.run`,
 the buffer loaded as software loads the core's."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from kfgen.hdl.linalg.imm_steps import ImmSizes, build_imm
+from kfgen.hdl.imm.programs import ImmSizes, build_imm
 from kfgen.sim.linalg.exec import from_words, run, to_words
 
 __all__ = ["buffer_values", "run_golden"]

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from kfgen.hdl.linalg.imm_steps import ImmSizes, build_imm
+from kfgen.hdl.imm.programs import ImmSizes, build_imm
 from kfgen.sim.linalg.exec import from_words, run, to_words
 
 

@@ -12,8 +12,16 @@ from kfgen.hdl.arith.float.sqrt import FloatSqrt
 from kfgen.hdl.linalg.banks import BUS_READ_LATENCY
 from kfgen.hdl.linalg.engine import OVERHEAD, Engine
 from kfgen.hdl.linalg.schedule import Machine, schedule
-from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.programs import build_ukf
 from kfgen.sim.linalg.exec import from_words, run, to_words
+
+
+def ukf_programs(sizes, w0=0.0, fmt="binary32"):
+    """The UKF's programs for ``sizes`` (n, nw, nv, m)."""
+    n, nw, nv, m = sizes
+    return build_ukf(UkfParams(states=n, observations=m, process_noise=nw, measurement_noise=nv, w0=w0,
+                               format=fmt))
 
 
 def machine(pes, fmt):
@@ -103,13 +111,13 @@ def simulate(dut, tb):
 def test_engine_ukf_iteration(pes, fmt):
     """sig_gen, software f, predict, software h, update, then a P that is not positive
     definite: the hardware's memory equals the golden model's word for word after each."""
-    ukf = build_ukf(UkfSizes(2, 1, 1, 1), 0.25, fmt)
+    ukf = ukf_programs((2, 1, 1, 1), 0.25, fmt)
     mc = machine(pes, fmt)
     scheds = {k: schedule(p, mc) for k, p in ukf.steps.items()}
     dut = Engine(scheds)
     for k, s in scheds.items():
         assert dut.cycles(k) == s.cycles + OVERHEAD
-    n = ukf.sizes.n
+    n = ukf.params.n
 
     async def tb(ctx):
         t = TB(ctx, dut, ukf)
@@ -154,7 +162,7 @@ def test_engine_verilog_lint(tmp_path):
     from kfgen.gen.verilog import emit, header, waivers
     from kfgen.sim.toolchain import ToolMissing, lint
 
-    ukf = build_ukf(UkfSizes(2, 1, 1, 1), 0.25, "binary32")
+    ukf = ukf_programs((2, 1, 1, 1), 0.25, "binary32")
     mc = machine(1, "binary32")
     dut = Engine({k: schedule(p, mc) for k, p in ukf.steps.items()})
     head = header("engine", "engine_top", {"n": 2, "nw": 1, "nv": 1, "m": 1, "pes": 1})

@@ -7,8 +7,16 @@ import numpy as np
 import pytest
 
 from kfgen.hdl.linalg.program import Copy, Dot
-from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf, simplex_rows
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.programs import build_ukf, simplex_rows
 from kfgen.sim.linalg.exec import from_words, run, to_words
+
+
+def ukf_programs(sizes, w0=0.0, fmt="binary32"):
+    """The UKF's programs for ``sizes`` (n, nw, nv, m)."""
+    n, nw, nv, m = sizes
+    return build_ukf(UkfParams(states=n, observations=m, process_noise=nw, measurement_noise=nv, w0=w0,
+                               format=fmt))
 
 TOL = {"binary32": 2e-5, "binary64": 1e-12}
 
@@ -61,10 +69,9 @@ def relerr(a, b):
 ])
 def test_iteration_matches_float64(sizes, w0, fmt):
     rng = np.random.default_rng(sum(sizes) + int(10 * w0))
-    sz = UkfSizes(*sizes)
     n, nw, nv, m = sizes
-    M, N = sz.M, sz.N
-    ukf = build_ukf(sz, w0, fmt)
+    ukf = ukf_programs(sizes, w0, fmt)
+    M, N = ukf.params.M, ukf.params.N
     buf = Buffer(ukf)
     x = buf.put("x", rng.normal(size=n))[:, 0]
     P = buf.put("P", spd(rng, n, 1.0))
@@ -75,7 +82,7 @@ def test_iteration_matches_float64(sizes, w0, fmt):
     # sig_gen reads the lower triangles: the float64 P^a is built from them (4)
     sym = lambda A: np.tril(A) + np.tril(A, -1).T  # noqa: E731
     Pa = np.zeros((M, M))
-    for A, b in zip((P, Q, R), sz.blocks):
+    for A, b in zip((P, Q, R), ((0, n), (n, n + nw), (n + nw, M))):
         Pa[b[0]:b[1], b[0]:b[1]] = sym(A)
     sig, W = sigma_matrix(M, w0)
     chi64 = np.concatenate([x, np.zeros(nw + nv)])[:, None] + np.linalg.cholesky(Pa) @ sig  # (8)
@@ -125,7 +132,7 @@ def test_simplex_set(M, w0):
 
 
 def test_pivot_and_nan_status():
-    ukf = build_ukf(UkfSizes(2, 1, 1, 1), 0.0, "binary32")
+    ukf = ukf_programs((2, 1, 1, 1), 0.0, "binary32")
     buf = Buffer(ukf)
     buf.put("P", [[1.0, 2.0], [2.0, 1.0]])  # indefinite: D_1 = -3
     buf.put("Q", [[1.0]])
@@ -147,7 +154,7 @@ def test_pivot_and_nan_status():
 
 
 def test_program_rules():
-    ukf = build_ukf(UkfSizes(2, 1, 1, 1))
+    ukf = ukf_programs((2, 1, 1, 1))
     one = ukf.layout["one"](0, 0)
     with pytest.raises(ValueError, match="constant"):
         ukf.sig_gen.emit(Copy(one, 0))
@@ -155,5 +162,3 @@ def test_program_rules():
         Dot(0, 1)
     with pytest.raises(ValueError, match="outside"):
         ukf.sig_gen.emit(Copy(ukf.layout.size, 0))
-    with pytest.raises(ValueError, match="w0"):
-        build_ukf(UkfSizes(2, 1, 1, 1), 1.0)

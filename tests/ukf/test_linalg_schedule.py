@@ -8,9 +8,16 @@ import pytest
 from kfgen.gen.bench_ukf import CHAPTER_CYCLES as CHAPTER  # Table 4, cycles per iteration at 100 MHz
 from kfgen.hdl.linalg.schedule import Machine, chain_bound, schedule
 from kfgen.hdl.linalg.store import encode, store_size
-from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
 from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.programs import build_ukf
 from kfgen.hdl.ukf.steps import machine as ukf_machine
+
+
+def ukf_programs(sizes, w0=0.0, fmt="binary32"):
+    """The UKF's programs for ``sizes`` (n, nw, nv, m)."""
+    n, nw, nv, m = sizes
+    return build_ukf(UkfParams(states=n, observations=m, process_noise=nw, measurement_noise=nv, w0=w0,
+                               format=fmt))
 
 
 def machine(pes, fmt="binary32", div_sqrt=None):
@@ -91,7 +98,7 @@ def check_schedule(s):
     ((7, 6, 7, 6), 2, "binary32", "pipelined"),
 ])
 def test_schedule_invariants(sizes, pes, fmt, div_sqrt):
-    ukf = build_ukf(UkfSizes(*sizes), 0.25, fmt)
+    ukf = ukf_programs(sizes, 0.25, fmt)
     for prog in ukf.steps.values():
         check_schedule(schedule(prog, machine(pes, fmt, div_sqrt)))
 
@@ -102,7 +109,7 @@ def test_cycles_against_bounds_and_chapter(capsys, div_sqrt):
     P = 1, pipelined above) and pipelined ones: each step within 1.3x of max(multiply-adds /
     P, chain bound, the divider's and square root's occupancy), the iteration within 1.3x of
     max(multiply-adds / P, chain bound), and at least 2x fewer cycles than Table 4."""
-    ukf = build_ukf(UkfSizes(7, 6, 7, 6), 0.0, "binary32")
+    ukf = ukf_programs((7, 6, 7, 6), 0.0, "binary32")
     chain = {k: chain_bound(p, machine(1)) for k, p in ukf.steps.items()}
     rows = [f"chain bound {chain}"]
     for pes in (1, 2, 5, 10):
@@ -132,7 +139,7 @@ def test_cycles_against_bounds_and_chapter(capsys, div_sqrt):
 
 
 def test_store_covers_every_term():
-    ukf = build_ukf(UkfSizes(3, 2, 2, 2), 0.0)
+    ukf = ukf_programs((3, 2, 2, 2), 0.0)
     for prog in ukf.steps.values():
         s = schedule(prog, machine(2))
         ins = encode(s)
@@ -151,4 +158,4 @@ def test_machine_rules():
     with pytest.raises(ValueError, match="pes"):
         Machine(0, 9, 32, 29)
     with pytest.raises(ValueError, match="ports"):
-        schedule(build_ukf(UkfSizes(2, 1, 1, 1)).update, Machine(1, 9, 32, 29, banks=1, ports=1))
+        schedule(ukf_programs((2, 1, 1, 1)).update, Machine(1, 9, 32, 29, banks=1, ports=1))

@@ -123,13 +123,13 @@ def test_two_word_elements_in_amaranth():
     from amaranth.sim import Simulator
 
     from kfgen.hdl.linalg.engine import Engine
-    from kfgen.hdl.ukf.core import Backend
+    from kfgen.hdl.engine.core import Backend
     from kfgen.hdl.ukf.regmap import ukf_map
 
     params = UkfParams(states=2, observations=1, process_noise=1, measurement_noise=1, format="binary64")
     rmap = ukf_map(params)
     engine = Engine(schedules(params))
-    back = Backend(params, engine)
+    back = Backend(params, engine, rmap)
     top = Module()
     top.submodules.engine, top.submodules.back = engine, back
     bus = back.bus

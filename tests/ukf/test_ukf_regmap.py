@@ -10,9 +10,10 @@ import pytest
 
 from kfgen.gen.regdoc import documents, map_manifest
 from kfgen.hdl.describe import ParamError
-from kfgen.hdl.linalg.ukf_steps import UkfSizes, build_ukf
+from kfgen.hdl.engine.regmap import Field, Memory, Register
 from kfgen.hdl.ukf.params import UkfParams
-from kfgen.hdl.ukf.regmap import Field, Memory, Register, ukf_map
+from kfgen.hdl.ukf.programs import build_ukf
+from kfgen.hdl.ukf.regmap import ukf_map
 
 CONFIGS = {
     "default": {},
@@ -126,7 +127,7 @@ def test_elements_and_bus_words(config):
 
 def test_map_agrees_with_the_engine_layout(config):
     params, regmap = config
-    engine = build_ukf(UkfSizes(params.n, params.nw, params.nv, params.m), params.w0, params.format).layout
+    engine = build_ukf(params).layout
     bus = [r for r in engine.regions.values() if r.kind == "bus"]
     assert [r.name for r in bus] == list(REGIONS)
     for r in bus:

@@ -44,7 +44,7 @@ from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.schur.program import schur_program
 from kfgen.sim.float_ref import round_to_format
 
-from .program import Div, Dot, Exp, Layout, Max, Program, Sqrt
+from ..linalg.program import Div, Dot, Exp, Layout, Max, Program, Sqrt
 
 __all__ = ["ImmSizes", "ImmPrograms", "build_imm"]
 

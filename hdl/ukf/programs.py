@@ -31,39 +31,16 @@ from math import isqrt
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.sim.float_ref import round_to_format
 
-from .program import Copy, Div, Dot, Layout, Program, Sqrt
+from ..linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
+from .params import UkfParams
 
-__all__ = ["UkfSizes", "UkfPrograms", "build_ukf", "simplex_rows"]
+__all__ = ["UkfPrograms", "build_ukf", "simplex_rows"]
 
 
-@dataclass(frozen=True)
-class UkfSizes:
-    """n states, nw process-noise and nv measurement-noise terms, m observations."""
-
-    n: int
-    nw: int
-    nv: int
-    m: int
-
-    def __post_init__(self):
-        for k in ("n", "nw", "nv", "m"):
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{k} must be a positive integer, not {v!r}")
-
-    @property
-    def M(self) -> int:
-        return self.n + self.nw + self.nv
-
-    @property
-    def N(self) -> int:
-        return self.M + 2
-
-    @property
-    def blocks(self):
-        """(first, end) of P, Q and R inside P^a."""
-        n, w = self.n, self.n + self.nw
-        return ((0, n), (n, w), (w, self.M))
+def _blocks(params):
+    """(first, end) of P, Q and R inside P^a."""
+    n, w = params.n, params.n + params.nw
+    return ((0, n), (n, w), (w, params.M))
 
 
 def _sqrt(q: Fraction, bits: int = 256) -> Fraction:
@@ -91,8 +68,7 @@ def simplex_rows(M: int, w0) -> tuple[Fraction, list[Fraction], list[Fraction]]:
 
 @dataclass
 class UkfPrograms:
-    sizes: UkfSizes
-    w0: float
+    params: UkfParams
     fmt: FloatFormat
     layout: Layout
     sig_gen: Program
@@ -104,14 +80,13 @@ class UkfPrograms:
         return {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
 
 
-def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
-    """The memory layout and the three step programs for one configuration."""
-    fmt = FloatFormat.parse(fmt)
-    if not 0 <= w0 < 1:
-        raise ValueError(f"w0 must be in [0, 1), not {w0!r}")
-    n, nw, nv, m = sizes.n, sizes.nw, sizes.nv, sizes.m
-    M, N = sizes.M, sizes.N
-    W1, c, d = simplex_rows(M, w0)
+def build_ukf(params: UkfParams) -> UkfPrograms:
+    """The memory layout and the three step programs for one configuration (its sizes,
+    ``w0`` and ``format``)."""
+    fmt = params.fmt
+    n, nw, nv, m = params.n, params.nw, params.nv, params.m
+    M, N = params.M, params.N
+    W1, c, d = simplex_rows(M, params.w0)
     lay = Layout()
     # The processor's buffer (names fixed by the issue), then work, then constants.
     x = lay.add("x", n, 1, "bus")
@@ -123,7 +98,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     chih = lay.add("sigma_points_h", N, m, "bus")
     z = lay.add("z", m, 1, "bus")
     # Work. P^a's blocks share one packed triangle (F, then L below the diagonal; D; s).
-    tri = [(i, j) for b0, b1 in sizes.blocks for i in range(b0, b1) for j in range(b0, i)]
+    tri = [(i, j) for b0, b1 in _blocks(params) for i in range(b0, b1) for j in range(b0, i)]
     F = lay.add("F", len(tri))
     L = lay.add("L", len(tri))
     D = lay.add("D", M)
@@ -157,7 +132,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     ti = {ij: t for t, ij in enumerate(tri)}
 
     def A(i, j):  # P^a's lower triangle, block by block (4)
-        for reg, (b0, b1) in zip((P, Q, R), sizes.blocks):
+        for reg, (b0, b1) in zip((P, Q, R), _blocks(params)):
             if b0 <= i < b1:
                 return reg(i - b0, j - b0)
         raise AssertionError
@@ -191,7 +166,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
         return fa, la
 
     lsg = {}
-    for b0, b1 in sizes.blocks:
+    for b0, b1 in _blocks(params):
         _, la = ldl(sg, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
             lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
@@ -204,7 +179,7 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
     def l2(rr, j):  # L2's entry (unit diagonal)
         return one if rr == j else lsg[rr, j]
 
-    for b0, b1 in sizes.blocks:
+    for b0, b1 in _blocks(params):
         for rr in range(b0, b1):
             xa = x(rr) if rr < n else None  # x^a = [x; 0; 0] (3)
             base = {rr + 1: xa}  # base[k] = T_rk, the suffix sum from column k
@@ -284,4 +259,4 @@ def build_ukf(sizes: UkfSizes, w0: float = 0.0, fmt="binary32") -> UkfPrograms:
             dst = (P(i, j),) if i == j else (P(i, j), P(j, i))
             up.emit(Dot(dst, P(i, j), [(Pxz(i, l), K(j, l), True) for l in range(m - 1, -1, -1)],
                         "finite"))
-    return UkfPrograms(sizes, w0, fmt, lay, sg, pr, up)
+    return UkfPrograms(params, fmt, lay, sg, pr, up)

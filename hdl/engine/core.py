@@ -1,0 +1,284 @@
+"""An engine core: the linear-algebra engine running a core's steps, its operand memory as
+the buffer of an AXI4 slave, and the control and status registers beside it (the UKF and the
+IMM are two).
+
+::
+
+  s_axi_* ─► Axi4Slave ─► word bus ─► Backend ─┬─ ID, CTRL, STATUS, IRQ_ENABLE ─► irq
+                                               └─ buffer ◄─► Engine memory port
+                                                             Engine(start, step, halt, ...)
+
+The core's register and memory map (:mod:`kfgen.hdl.engine.regmap`) gives every offset and
+field position used here. Bus rules beyond the map's (documented in the map and the
+generated ``TOP.md``):
+
+- **Reads are always answered.** While busy, a buffer read waits for a cycle in which the
+  step leaves its memory bank a port and writes nothing to it (the engine's ``mem_rok``;
+  the R channel then simply stalls, as AXI allows) and returns the word as it is then: a
+  region the step does not write (``Q``, ``R``, ``z`` in ``sig_gen``, say) reads as
+  written, one it writes reads some state of the step. Register reads (``STATUS`` above
+  all) never wait.
+- **Writes while busy**: buffer writes answer SLVERR and change nothing; the registers stay
+  writable (``CTRL.reset`` stops a step, ``STATUS`` bits clear, ``IRQ_ENABLE`` changes). A
+  write of ``CTRL`` with ``start`` set while busy answers SLVERR, changes nothing and sets
+  ``STATUS.err_busy``.
+- **Byte strobes**: registers take bytes whose strobe is set (their fields all sit in byte 0,
+  so a write without ``WSTRB[0]`` changes nothing). The buffer takes whole bus words: a beat
+  with every strobe set writes, a beat with none writes nothing (OKAY), any other strobe
+  answers SLVERR and writes nothing (the engine's memory has no byte enables).
+- **Two-word elements** (binary64, low half first): writing an element's low half only
+  stores it in a holding register; writing its high half writes the element from the high
+  half and the held low half. So software writes low then high, as a burst does; reads
+  return the element as stored.
+- **Timing**: the step starts on the clock edge that takes the W beat writing
+  ``CTRL.start = 1``; counting that edge as the first, ``STATUS.done`` reads 1 after edge
+  :meth:`Ukf.cycles` (the manifest's ``cycles``) and ``irq`` rises on the next edge.
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from ..bus.axi4 import Axi4Slave, WordBusSignature, axi4_slave_members, forward
+from ..linalg.banks import BUS_READ_LATENCY
+from ..linalg.engine import Engine
+from .regmap import BUS_ID_WIDTH
+
+__all__ = ["EngineCore", "Backend"]
+
+_EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
+
+#: The back end's read latency on the word bus: the engine's memory port's (the buffer's word
+#: comes from the register behind its block RAM).
+READ_LATENCY = BUS_READ_LATENCY
+
+
+class Backend(wiring.Component):
+    """Registers and buffer of an engine core behind the word bus (:class:`WordBusSignature`),
+    driving ``engine``'s control inputs and memory port.
+
+    Parameters
+    ----------
+    params
+        The core's parameters (``fmt`` and ``irq`` used here).
+    engine : Engine
+        The engine of ``params``' step programs (its memory is the buffer, from word 0).
+    rmap : RegisterMap
+        The core's map. ``CTRL.step`` names the
+        engine's steps in order; without that field the engine has one step. Every ``ro``
+        memory answers writes with SLVERR.
+
+    Members
+    -------
+    bus : In(WordBusSignature(address_width - 2, READ_LATENCY))
+        Read latency 2: the buffer's word is registered behind the block RAM.
+    irq : Out(1)
+        ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
+    """
+
+    def __init__(self, params, engine: Engine, rmap):
+        self._params, self._engine = params, engine
+        self._map = rmap
+        ctrl = self._map["CTRL"]
+        self._f_step = next((f for f in ctrl.fields if f.name == "step"), None)
+        if self._f_step is not None:
+            if engine.step_names != tuple(v.name for v in self._f_step.values):
+                raise ValueError("CTRL.step's values must name the engine's steps in its order")
+        elif len(engine.step_names) != 1:
+            raise ValueError("an engine of several steps needs a CTRL.step field")
+        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, READ_LATENCY)),
+                          "irq": Out(1)})
+
+    def elaborate(self, platform):
+        m = Module()
+        bus, eng, rmap, p = self.bus, self._engine, self._map, self._params
+        width = p.fmt.width
+        words = rmap.memories[0].words
+        base = rmap.buffer_base // 4  # buffer's first bus word; a power of two
+        kb = base.bit_length() - 1
+        elements = sum(mem.elements for mem in rmap.memories)
+        read_only = [((mem.offset - rmap.buffer_base) // mem.element_size, mem.elements)
+                     for mem in rmap.memories if mem.access == "ro"]  # (first element, elements)
+        regs = {r.name: r.offset // 4 for r in rmap.registers}
+        ctrl, status = rmap["CTRL"], rmap["STATUS"]
+        f_start, f_reset, f_step = ctrl.field("start"), ctrl.field("reset"), self._f_step
+        f_busy = status.field("busy")
+        lsb = {e: status.field(e).lsb for e in _EVENTS}
+
+        def buffer_at(addr):
+            """(in the buffer, element, half) of a word address."""
+            inside = addr[kb:] == 1
+            index = addr[:kb]
+            element = index[words - 1:] if words == 2 else index
+            return inside & (element < elements), element, index[0] if words == 2 else 0
+
+        # ------------------------------------------------------------- state
+        step = Signal(f_step.width if f_step else 1)
+        sticky = {e: Signal(name=f"status_{e}") for e in _EVENTS}
+        enable = {e: Signal(name=f"irq_enable_{e}") for e in _EVENTS}
+        busy = eng.busy
+
+        # ------------------------------------------------------------- writes
+        w_buf, w_elem, w_half = buffer_at(bus.w_addr)
+        wd, ws = bus.w_data, bus.w_strb
+        byte0 = bus.w_en & ws[0]
+        is_reg = {name: bus.w_addr == word for name, word in regs.items()}
+        do_reset = byte0 & is_reg["CTRL"] & wd[f_reset.lsb]
+        do_start = byte0 & is_reg["CTRL"] & wd[f_start.lsb] & ~do_reset
+        refused_start = do_start & busy
+        new_step = wd[f_step.lsb:f_step.msb + 1] if f_step else 0
+        whole = ws == 0xF
+        buf_err = ~w_buf | busy
+        for lo_e, count in read_only:
+            buf_err = buf_err | ((w_elem >= lo_e) & (w_elem < lo_e + count))
+        buf_err = buf_err | ((ws != 0) & ~whole)
+        reg_err = ~(is_reg["CTRL"] | is_reg["STATUS"] | is_reg.get("IRQ_ENABLE", 0)) | refused_start
+        m.d.comb += bus.w_err.eq(Mux(w_buf, buf_err, reg_err))
+
+        # buffer: the engine's write lane; two-word elements hold the low half until the high
+        lo = Signal(32) if words == 2 else None
+        buf_we = bus.w_en & w_buf & ~buf_err & whole
+        m.d.comb += [eng.mem_waddr.eq(w_elem)]
+        if words == 2:
+            with m.If(buf_we & ~w_half):
+                m.d.sync += lo.eq(wd)
+            m.d.comb += [eng.mem_we.eq(buf_we & w_half), eng.mem_wdata.eq(Cat(lo, wd)[:width])]
+        else:
+            m.d.comb += [eng.mem_we.eq(buf_we), eng.mem_wdata.eq(wd[:width])]
+
+        # control: start (the step in the same write), soft reset
+        known = new_step < len(eng.step_names)
+        m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step), eng.halt.eq(do_reset)]
+        with m.If(byte0 & is_reg["CTRL"] & ~refused_start):
+            m.d.sync += step.eq(new_step)
+
+        # status: events set by the engine and by a refused start, cleared by w1c or reset
+        now = {"done": eng.done, "err_pivot": eng.done & eng.err_pivot, "err_nan": eng.done & eng.err_nan,
+               "err_busy": refused_start}
+        clear = {e: byte0 & is_reg["STATUS"] & wd[lsb[e]] for e in _EVENTS}
+        seen = {e: Signal(name=f"status_{e}_now") for e in _EVENTS}  # STATUS as read this cycle
+        for e in _EVENTS:
+            m.d.comb += seen[e].eq(sticky[e] | now[e])
+            m.d.sync += sticky[e].eq(~do_reset & (now[e] | (sticky[e] & ~clear[e])))
+        if "IRQ_ENABLE" in regs:
+            irq_reg = rmap["IRQ_ENABLE"]
+            with m.If(byte0 & is_reg["IRQ_ENABLE"]):
+                m.d.sync += [enable[e].eq(wd[irq_reg.field(e).lsb]) for e in _EVENTS]
+            m.d.sync += self.irq.eq(~do_reset & Cat(seen[e] & enable[e] for e in _EVENTS).any())
+
+        # ------------------------------------------------------------- reads (latency 2)
+        r_buf, r_elem, r_half = buffer_at(bus.r_addr)
+        # a read waits for the memory anywhere in the buffer's window (a hole past the last
+        # region waits too, then answers SLVERR): the window is a few address bits, the
+        # buffer's end a comparison, and the front end's issue follows this
+        m.d.comb += [eng.mem_raddr.eq(r_elem), bus.r_wait.eq((bus.r_addr[kb:] == 1) & ~eng.mem_rok)]
+
+        def pack(bits):
+            """A 32-bit word of {lsb: value}."""
+            word = Signal(32)
+            for at, v in bits.items():
+                m.d.comb += word[at:at + len(v)].eq(v)
+            return word
+
+        id_value = sum(f.reset << f.lsb for f in rmap["ID"].fields)
+        values = {
+            "ID": id_value & 0xFFFF_FFFF,
+            "ID_HI": id_value >> 32,
+            "CTRL": pack({f_step.lsb: step} if f_step else {}),
+            "STATUS": pack({f_busy.lsb: busy, **{lsb[e]: seen[e] for e in _EVENTS}}),
+        }
+        if "IRQ_ENABLE" in regs:
+            irq_reg = rmap["IRQ_ENABLE"]
+            values["IRQ_ENABLE"] = pack({irq_reg.field(e).lsb: enable[e] for e in _EVENTS})
+        reg_words = {regs["ID"]: "ID", regs["ID"] + 1: "ID_HI", regs["CTRL"]: "CTRL",
+                     regs["STATUS"]: "STATUS"}
+        if "IRQ_ENABLE" in regs:
+            reg_words[regs["IRQ_ENABLE"]] = "IRQ_ENABLE"
+        reg_data, from_buf, half, err = Signal(32), Signal(), Signal(), Signal()
+        with m.If(bus.r_en):
+            m.d.sync += [from_buf.eq(r_buf), half.eq(r_half)]
+            with m.Switch(bus.r_addr):
+                for word, name in reg_words.items():
+                    with m.Case(word):
+                        m.d.sync += [reg_data.eq(values[name]), err.eq(0)]
+                with m.Default():  # the buffer, or a hole
+                    m.d.sync += [reg_data.eq(0), err.eq(~r_buf)]
+        # the memory's word comes from the register behind its block RAM (latency 2); the
+        # registers' word is registered once more to meet it
+        elem = eng.mem_rdata
+        reg_r, from_buf_r, err_r = Signal(32), Signal(), Signal()
+        m.d.sync += [reg_r.eq(reg_data), from_buf_r.eq(from_buf), err_r.eq(err)]
+        buf_word = elem
+        if words == 2:
+            half_r = Signal()
+            m.d.sync += half_r.eq(half)
+            buf_word = Mux(half_r, elem[32:], elem[:32])
+        # (a refused read's data is the front end's to zero)
+        m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_word, reg_r)), bus.r_err.eq(err_r)]
+        return m
+
+
+class EngineCore(wiring.Component):
+    """An engine core: the linear-algebra engine of ``schedules`` behind an AXI4 slave with
+    the registers and buffer of ``rmap`` (:class:`Backend`). The UKF and the IMM are two.
+
+    Parameters
+    ----------
+    params
+        The core's parameters (``fmt``, ``irq`` used here).
+    rmap : RegisterMap
+    schedules : dict of str to Schedule
+        The engine's steps, in ``CTRL.step``'s order.
+
+    Members
+    -------
+    s_axi_aw*, s_axi_w*, s_axi_b*, s_axi_ar*, s_axi_r*
+        AXI4 slave, 32-bit data, ``address_width``-bit addresses, 4-bit IDs.
+    irq : Out(1)
+        Level, active high (without it when ``params.irq`` is false).
+
+    ``latency`` and ``initiation_interval`` are ``None``: the core runs steps, and
+    :meth:`cycles` says how long each takes.
+    """
+
+    latency = None
+    initiation_interval = None
+
+    def __init__(self, params, rmap, schedules):
+        self._params = params
+        self._map = rmap
+        self._schedules = schedules
+        self._engine = Engine(self._schedules)
+        self._members = axi4_slave_members(self._map.address_width, BUS_ID_WIDTH)
+        super().__init__({**self._members, **({"irq": Out(1)} if params.irq else {})})
+
+    @property
+    def params(self):
+        return self._params
+
+    @property
+    def regmap(self):
+        return self._map
+
+    @property
+    def schedules(self) -> dict:
+        return dict(self._schedules)
+
+    def cycles(self, step: str) -> int:
+        """Clock edges from the one taking the W beat of ``CTRL.start = 1`` (counted) to the
+        first one after which ``STATUS.done`` reads 1 (the engine's own count, both ends
+        included: the back end adds nothing)."""
+        return self._engine.cycles(step)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, READ_LATENCY)
+        m.submodules.engine = self._engine
+        m.submodules.back = back = Backend(self._params, self._engine, self._map)
+        wiring.connect(m, front.bus, back.bus)
+        forward(m, self, front, self._members)
+        if self._params.irq:
+            m.d.comb += self.irq.eq(back.irq)
+        return m

@@ -1,0 +1,68 @@
+"""What every engine core's descriptor (:class:`kfgen.hdl.describe.CoreDescriptor`) shares:
+the docs of the shared parameters, the Verilator waivers of the AXI front end and the
+buffer, and the manifest's ``cycles`` and ``engine`` entries."""
+
+from __future__ import annotations
+
+from ..describe import Doc
+from ..linalg.store import store_size
+from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
+
+__all__ = ["engine_docs", "engine_waivers", "engine_manifest", "CYCLES_DEFINITION"]
+
+#: The manifest's ``cycles_definition``: what a step's cycle count counts.
+CYCLES_DEFINITION = ("clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
+                     "first edge after which STATUS.done reads 1, both counted; irq rises on the "
+                     "next edge")
+
+
+def engine_docs() -> dict[str, Doc]:
+    """The Docs of the parameters every engine core (UKF, IMM) shares: format, irq,
+    address_width, name."""
+    return {
+        "format": Doc("float format of every buffer word and of the arithmetic", "",
+                      f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
+                      "(any case)"),
+        "irq": Doc("the irq output and the IRQ_ENABLE register", "",
+                   "on or off (in a --config file: irq = true or false)"),
+        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
+                             "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
+        "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
+                    "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
+    }
+
+
+def engine_waivers(params) -> str:
+    """The AXI front end's waivers, and with a format narrower than the bus word the unused
+    high bits of a buffer write."""
+    from ..bus.axi4 import lint_waivers  # Amaranth, only when generating
+    text = lint_waivers(params.name)
+    width = params.fmt.width
+    if width < 32:  # binary16, bfloat16, narrow eEmM: one element in the low bits of a bus word
+        text += (f"\n// An element narrower than the 32-bit bus word sits in its low {width} bits: a write\n"
+                 f"// ignores the high bits (a read returns them as 0).\n"
+                 f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
+                 f"-match \"Bits of signal are not used: 'back_bus__w_data'?31:{width}?\"\n")
+    return text
+
+
+def engine_manifest(core) -> dict:
+    """The manifest's ``cycles`` (step name -> cycles), ``cycles_definition`` and ``engine``
+    (the machine's timing, the operand memory's words and the program store) of ``core``, an
+    :class:`~kfgen.hdl.engine.core.EngineCore`."""
+    scheds = core.schedules
+    first = next(iter(scheds.values()))
+    layout, mc = first.program.layout, first.machine
+    store = store_size(list(scheds.values()), layout.size)
+    uses_exp = any(op.unit == "exp" for s in scheds.values() for op in s.program.ops)
+    return {
+        "cycles": {name: core.cycles(name) for name in scheds},
+        "cycles_definition": CYCLES_DEFINITION,
+        "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register,
+                   "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
+                   "sqrt_latency": mc.sqrt_latency, **({"exp_latency": mc.exp_latency} if uses_exp else {}),
+                   "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
+                   "memory_words": layout.size,
+                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
+                                     "bits": store.bits}},
+    }

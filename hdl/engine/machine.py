@@ -1,0 +1,46 @@
+# amaranth: UnusedElaboratable=no
+# (The float units made here are only asked their latency, never elaborated: Amaranth's
+# public linter option for that; it covers only what this file creates.)
+"""The engine's machine for one engine core's parameters: P processing elements, the memory
+banks and the divider and square root a core's ``pes``, ``banks``, ``div_sqrt`` and ``fmt``
+ask for, and the schedules of a core's programs on it."""
+
+from __future__ import annotations
+
+from ..arith.float.div import FloatDiv
+from ..arith.float.fma import FloatFMA
+from ..arith.float.sqrt import FloatSqrt
+from ..linalg.schedule import Machine, schedule
+
+__all__ = ["machine", "schedules"]
+
+
+def _sqrt_stages(fmt, per_op):
+    """The square root's stages: its default, except that a pipelined one gets its rounding's
+    select registered too (the fewest stages from the default on with a ``round.select``
+    register), whose last stage was the pipelined core's critical path on the ECP5."""
+    unit = FloatSqrt(fmt, cycles_per_op=per_op)
+    unit._MustUse__silence = True  # only its plans are read
+    if per_op != 1:
+        return unit.stages
+    return min((k for k, plan in unit.PLANS.items() if k >= unit.stages and "round.select" in plan),
+               default=unit.stages)
+
+
+def machine(params) -> Machine:
+    """P processing elements (the FMA's default pipeline), ``params.banks`` memory banks, and
+    the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle: an
+    operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
+    pipelined (the square root with its rounding's select registered)."""
+    fmt = params.fmt
+    per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
+    div = FloatDiv(fmt, cycles_per_op=per_op[FloatDiv])
+    sqrt = FloatSqrt(fmt, cycles_per_op=per_op[FloatSqrt], stages=_sqrt_stages(fmt, per_op[FloatSqrt]))
+    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
+                   div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval)
+
+
+def schedules(steps: dict, mc: Machine) -> dict:
+    """Step name -> :class:`~kfgen.hdl.linalg.schedule.Schedule` of each of ``steps`` (name ->
+    :class:`~kfgen.hdl.linalg.program.Program`, in ``CTRL.step``'s order) on ``mc``."""
+    return {name: schedule(prog, mc) for name, prog in steps.items()}
