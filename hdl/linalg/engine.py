@@ -26,6 +26,7 @@ from amaranth.hdl import Array, C, Module, ResetInserter, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from . import isa
 from .banks import BankedMemory
 from .microcode import compile_steps
 from .sequencer import InstructionStream, instruction_layout
@@ -129,9 +130,7 @@ class Engine(wiring.Component):
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
             else:
-                stages = {"div": mc.div_latency, "sqrt": mc.sqrt_latency, "exp": mc.exp_latency,
-                          "copy": None, "max": None}[img.unit]
-                unit = SharedUnit(img.unit, fmt, g, layout, stages=stages,
+                unit = SharedUnit(img.unit, fmt, g, layout, stages=isa.unit(img.unit).pipeline(mc),
                                   cycles_per_op=mc.interval(img.unit), register=mc.unit_register)
             m.submodules[name] = ResetInserter(halt)(unit)  # no write in flight
             m.d.comb += [unit.fire.eq(stream.fire), unit.ins.eq(stream.ins)]

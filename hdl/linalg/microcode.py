@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .isa import UNITS
 from .schedule import READ_LATENCY, Schedule
 from .store import Instruction, encode
 
@@ -81,7 +82,7 @@ def _word(ins: Instruction, delta: int, g: Geometry) -> dict:
         "dst": g.addr(dst[0]),
         "dst1": g.addr(dst[1]),
         "mirror": int(len(ins.dst) == 2),
-        "check": {None: 0, "pivot": 1, "finite": 2}[ins.check],
+        "check": int(ins.check),
         **dict(zip(("pa", "pb", "pi", "pd0", "pd1"), ins.ports)),
     }
     if ins.unit == "fma":
@@ -110,8 +111,9 @@ def compile_steps(scheds: list[Schedule]) -> Microcode:
     if mc.read_latency != READ_LATENCY:
         raise ValueError(f"the engine's memory has read latency {READ_LATENCY}, not {mc.read_latency}")
     g = Geometry(layout.size, mc.banks)
-    extra = [u for u in ("exp", "max") if any(u in s.program.units for s in scheds)]
-    names = [f"pe{p}" for p in range(mc.pes)] + ["div", "sqrt", "copy"] + extra
+    shared = [u.name for u in UNITS.values() if u.name != "fma"
+              and (not u.optional or any(u.name in s.program.units for s in scheds))]
+    names = [f"pe{p}" for p in range(mc.pes)] + shared
     streams = {k: StreamImage("fma" if k.startswith("pe") else k, [], [], []) for k in names}
     deltas, counts = [0], [1]
     for s in scheds:

@@ -24,12 +24,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "CHECKS", "UNITS"]
+from . import isa
+from .isa import Check
 
-CHECKS = (None, "pivot", "finite")
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "UNITS"]
 
-#: The executing units, in the program store's order.
-UNITS = ("fma", "div", "sqrt", "copy", "exp", "max")
+#: The executing units' names, in the program store's order (:data:`.isa.UNITS`).
+UNITS = tuple(isa.UNITS)
 
 
 @dataclass(frozen=True)
@@ -102,10 +103,8 @@ def _dst(dst):
     return tuple(_addr(d, "dst") for d in dst)
 
 
-def _check(check):
-    if check not in CHECKS:
-        raise ValueError(f"check must be one of {CHECKS}, not {check!r}")
-    return check
+def _check(check) -> Check:
+    return Check.of(check)
 
 
 @dataclass(frozen=True)
@@ -118,7 +117,7 @@ class Dot:
     dst: tuple[int, ...]
     init: int | None
     terms: tuple[tuple[int, int, bool], ...]
-    check: str | None = None
+    check: Check = Check.NONE
 
     def __init__(self, dst, init=None, terms=(), check=None):
         object.__setattr__(self, "dst", _dst(dst))
@@ -146,7 +145,7 @@ class _Binary:
     dst: tuple[int, ...]
     a: int
     b: int
-    check: str | None = None
+    check: Check = Check.NONE
 
     def __init__(self, dst, a, b, check=None):
         object.__setattr__(self, "dst", _dst(dst))
@@ -169,7 +168,7 @@ class _Unary:
 
     dst: tuple[int, ...]
     a: int
-    check: str | None = None
+    check: Check = Check.NONE
 
     def __init__(self, dst, a, check=None):
         object.__setattr__(self, "dst", _dst(dst))
@@ -216,7 +215,7 @@ class Copy:
 
     dst: tuple[int, ...]
     src: int
-    check: str | None = None
+    check: Check = Check.NONE
 
     def __init__(self, dst, src, check=None):
         object.__setattr__(self, "dst", _dst(dst))

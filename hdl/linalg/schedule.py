@@ -39,6 +39,7 @@ import heapq
 from collections import defaultdict
 from dataclasses import dataclass, field
 
+from . import isa
 from .program import Program
 
 __all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "READ_LATENCY",
@@ -86,14 +87,11 @@ class Machine:
 
     def latency(self, unit: str) -> int:
         """Cycles from the arrival of ``unit``'s operands to its write (the scheduler's ``L``)."""
-        if unit == "fma":
-            return self.fma_latency
-        return self.unit_register + {"div": self.div_latency, "sqrt": self.sqrt_latency,
-                                     "copy": 0, "exp": self.exp_latency, "max": 0}[unit]
+        return isa.unit(unit).cycles(self)
 
     def interval(self, unit: str) -> int:
         """Cycles from one issue to the next on ``unit`` (1: pipelined)."""
-        return {"div": self.div_interval, "sqrt": self.sqrt_interval}.get(unit, 1)
+        return isa.unit(unit).issue_interval(self)
 
     def unlimited(self) -> Machine:
         """Unlimited PEs, banks and ports, and a divider and square root per operation."""

@@ -7,7 +7,9 @@ from amaranth.hdl import Array, C, Module, Mux, Signal, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In, Out
 
+from . import isa
 from .banks import addr_layout
+from .isa import CHECK_BITS
 
 __all__ = ["instruction_layout", "InstructionStream"]
 
@@ -17,13 +19,13 @@ def instruction_layout(unit: str, geometry, widths, mirror: bool = True) -> data
     instruction of the stream writes a second address) no ``mirror`` and ``dst1``."""
     addr = addr_layout(geometry)
     fields = {"delta": unsigned(widths["delta"]), "a": addr, "pa": 1, "b": addr, "pb": 1,
-              "dst": addr, "pd0": 1, "check": 2}
+              "dst": addr, "pd0": 1, "check": CHECK_BITS}
     if mirror:
         fields.update({"dst1": addr, "pd1": 1, "mirror": 1})
     if unit == "fma":
         fields.update({"count": unsigned(widths["count"]), "sa": addr, "sb": addr, "neg": 1,
                        "first": 1, "init_en": 1, "init": addr, "pi": 1, "last": 1})
-    if unit in ("sqrt", "copy", "exp"):
+    if "b" not in isa.unit(unit).operands:
         del fields["b"], fields["pb"]
     return data.StructLayout(fields)
 

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .program import UNITS, Dot
+from .isa import CHECK_BITS, UNITS, Check
+from .program import Dot
 from .schedule import Schedule
 
 __all__ = ["Instruction", "encode", "StoreSize", "store_size"]
 
-CHECK_CODES = {None: 0, "pivot": 1, "finite": 2}
+_CODE = {name: k for k, name in enumerate(UNITS)}  # the unit field's value
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,7 @@ class Instruction:
     init: int | None  # first segment of an FMA accumulation
     dst: tuple[int, ...]  # last segment (empty otherwise)
     last: bool
-    check: str | None
+    check: Check
     ports: tuple = (0, 0, 0, 0, 0)  # memory port of lanes a, b, init, dst0, dst1
 
 
@@ -79,12 +80,12 @@ def encode(sched: Schedule) -> list[Instruction]:
                 out.append(Instruction(p.start + i * lf, "fma", p.pe, j - i, op.terms[i][0], sa,
                                        op.terms[i][1], sb, op.terms[i][2], r == 0,
                                        op.init if r == 0 else None, op.dst if last else (),
-                                       last, op.check if last else None, _ports(p)))
+                                       last, op.check if last else Check.NONE, _ports(p)))
         else:
             rd = op.reads
             out.append(Instruction(p.start, p.unit, 0, 1, rd[0], 0, rd[1] if len(rd) > 1 else 0,
                                    0, False, True, None, op.dst, True, op.check, _ports(p)))
-    out.sort(key=lambda ins: (ins.start, UNITS.index(ins.unit), ins.pe))
+    out.sort(key=lambda ins: (ins.start, _CODE[ins.unit], ins.pe))
     return out
 
 
@@ -115,7 +116,8 @@ def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
     pes = max(s.machine.pes or 1 for s in scheds)
     A = _bits(memory_words - 1)
     f = {
-        "unit": _bits(len(UNITS) - 1) if any(i.unit in ("exp", "max") for i in allins) else 2,
+        "unit": _bits(max([_CODE[u.name] for u in UNITS.values() if not u.optional]
+                          + [_CODE[i.unit] for i in allins])),
         "pe": _bits(pes - 1),
         "delta": _bits(max(deltas)),
         "count": _bits(max(i.count for i in allins)),
@@ -126,7 +128,7 @@ def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
         "init": 1 + A,  # valid + address
         "dst": 1 + 2 * A,  # a mirror flag, two addresses (the second only when mirrored)
         "last": 1,
-        "check": 2,
+        "check": CHECK_BITS,
         "ports": 5,  # a, b, init, dst0, dst1
     }
     return StoreSize(len(allins), sum(f.values()), f)

@@ -13,25 +13,24 @@ from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from kfgen.hdl.arith.float.div import FloatDiv
-from kfgen.hdl.arith.float.exp import FloatExp
 from kfgen.hdl.arith.float.fma import FloatFMA
-from kfgen.hdl.arith.float.sqrt import FloatSqrt
 
+from . import isa
 from .banks import ReadLane, WriteLane, addr_layout
+from .isa import CHECK_BITS, Check
 from .microcode import READ_LATENCY
 
 __all__ = ["ProcessingElement", "SharedUnit", "faults"]
 
 
 def faults(fmt, y, check):
-    """``(pivot, nan)`` of result ``y`` under check code ``check`` (1 pivot, 2 finite), as
+    """``(pivot, nan)`` of result ``y`` under check code ``check`` (a :class:`~.isa.Check`), as
     :func:`kfgen.sim.linalg.exec.run` decides them: a pivot is bad when NaN, negative
     (``-0`` included) or ``+0``; a checked result when NaN or infinite."""
     w = fmt.width
     special, nan = _special(fmt, y)
-    pivot = (check == 1) & (nan | y[w - 1] | (y[:w - 1] == 0))
-    return pivot, (check == 2) & special
+    pivot = (check == int(Check.PIVOT)) & (nan | y[w - 1] | (y[:w - 1] == 0))
+    return pivot, (check == int(Check.FINITE)) & special
 
 
 def _special(fmt, y):
@@ -56,7 +55,7 @@ def _advance(g, m, addr, stride):
 
 def _writeback_layout(g, mirror=True):
     addr = addr_layout(g)
-    return data.StructLayout({"en": 1, "dst": addr, "pd0": 1, "check": 2,
+    return data.StructLayout({"en": 1, "dst": addr, "pd0": 1, "check": CHECK_BITS,
                               **({"mirror": 1, "dst1": addr, "pd1": 1} if mirror else {})})
 
 
@@ -261,10 +260,12 @@ class SharedUnit(_Unit):
     """
 
     def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1, register=1):
-        if kind not in ("div", "sqrt", "exp", "copy", "max"):
-            raise ValueError(f"kind must be div, sqrt, exp, copy or max, not {kind!r}")
+        shared = [name for name, u in isa.UNITS.items() if u.hardware or u.word]
+        if kind not in shared:
+            raise ValueError(f"kind must be {', '.join(shared[:-1])} or {shared[-1]}, not {kind!r}")
+        self._unit = isa.UNITS[kind]
         self._kind, self._stages, self._per_op, self._reg = kind, stages, cycles_per_op, register
-        super().__init__(fmt, geometry, layout, 2 if kind in ("div", "max") else 1)
+        super().__init__(fmt, geometry, layout, len(self._unit.operands))
 
     def _registered(self, m, wb, words, name):
         """``wb`` and ``words`` behind the unit's ``register`` registers (the words without
@@ -293,24 +294,20 @@ class SharedUnit(_Unit):
             m.d.comb += [wb0.mirror.eq(new.mirror), wb0.dst1.eq(new.dst1), wb0.pd1.eq(new.pd1)]
         wb = _delay(m, wb0, READ_LATENCY, "operands")  # the operands arrive
         operands = [lane.data for lane in self.rd]
-        if self._kind in ("copy", "max"):
-            if self._kind == "copy":
-                wb, (y,) = self._registered(m, wb, operands, "result")
+        if self._unit.word is not None:  # a move or a comparison, in the result's register
+            y, nan = self._unit.word(fmt, *operands)
+            if nan is None:
+                wb, (y,) = self._registered(m, wb, [y], "result")
             else:
-                y, nan = max_word(fmt, *operands)
                 wb, (y, nv) = self._registered(m, wb, [y, wb.en & nan], "result")
                 m.d.comb += self.flags.eq(Mux(nv, 0b10000, 0))  # NV, as a comparison
             self._write(m, wb, y)
             return m
-        if self._kind == "exp":
-            unit = FloatExp(fmt, stages=self._stages)
-        else:
-            cls = FloatDiv if self._kind == "div" else FloatSqrt
-            unit = cls(fmt, stages=self._stages, cycles_per_op=self._per_op)
+        unit = self._unit.hardware(fmt, self._stages, self._per_op)
         m.submodules.unit = unit
         wb, operands = self._registered(m, wb, operands, "operand")
         m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(operands[0])]
-        if self._kind == "div":
+        if "b" in self._unit.operands:
             m.d.comb += unit.i_b.eq(operands[1])
         m.d.comb += self.flags.eq(Mux(unit.o_valid, unit.o_flags, 0))
         self._write(m, _delay(m, wb, unit.latency, "wb"), unit.o_y)

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from kfgen.hdl.linalg.program import Copy, Div, Dot, Exp, Max, Program, Sqrt
+from kfgen.hdl.linalg.isa import Check
+from kfgen.hdl.linalg.program import Dot, Program
 from kfgen.sim.float_ref import ref_op
 from kfgen.sim.fpu.exp_model import exp_model
 
-__all__ = ["Status", "run", "max_value", "to_words", "from_words"]
+__all__ = ["Status", "run", "GOLDEN", "max_value", "to_words", "from_words"]
 
 
 @dataclass
@@ -44,31 +45,40 @@ def run(prog: Program, mem: list[int], subnormals: str = "ieee") -> Status:
             for a, b, neg in op.terms:
                 acc, fl = ref_op("fma", fmt, mem[a] ^ (sign if neg else 0), mem[b], acc, subnormals)
                 st.flags |= fl
-        elif isinstance(op, Div):
-            acc, fl = ref_op("div", fmt, mem[op.a], mem[op.b], None, subnormals)
+        elif op.unit in GOLDEN:
+            acc, fl = GOLDEN[op.unit](fmt, *(mem[a] for a in op.reads), subnormals=subnormals)
             st.flags |= fl
-        elif isinstance(op, Sqrt):
-            acc, fl = ref_op("sqrt", fmt, mem[op.a], None, None, subnormals)
-            st.flags |= fl
-        elif isinstance(op, Copy):
-            acc = mem[op.src]
-        elif isinstance(op, Exp):
-            y, fl = exp_model(fmt, [mem[op.a]], subnormals)
-            acc, fl = int(y[0]), int(fl[0])
-            st.flags |= fl
-        elif isinstance(op, Max):
-            acc, nan = max_value(fmt, mem[op.a], mem[op.b])
-            st.flags |= 0b10000 if nan else 0
         else:
             raise TypeError(f"unknown operation {op!r}")
         special = acc & exp_all == exp_all  # NaN or infinity
-        if op.check == "pivot" and (special and acc & fmt.frac_mask or acc & sign or not acc & ~sign):
+        if op.check == Check.PIVOT and (special and acc & fmt.frac_mask or acc & sign or not acc & ~sign):
             st.pivot = True  # NaN, negative (or -0), +0
-        elif op.check == "finite" and special:
+        elif op.check == Check.FINITE and special:
             st.nan = True
         for d in op.dst:
             mem[d] = acc
     return st
+
+
+def _exp(fmt, a, subnormals):
+    y, fl = exp_model(fmt, [a], subnormals)
+    return int(y[0]), int(fl[0])
+
+
+def _max(fmt, a, b, subnormals):
+    y, nan = max_value(fmt, a, b)
+    return y, 0b10000 if nan else 0  # NV, as a comparison
+
+
+#: The golden operation of every engine unit but the FMA (:data:`kfgen.hdl.linalg.isa.UNITS`):
+#: ``(fmt, *operand words, subnormals=...) -> (word, IEEE flags)``, rounded as the unit rounds.
+GOLDEN = {
+    "div": lambda fmt, a, b, subnormals: ref_op("div", fmt, a, b, None, subnormals),
+    "sqrt": lambda fmt, a, subnormals: ref_op("sqrt", fmt, a, None, None, subnormals),
+    "copy": lambda fmt, a, subnormals: (a, 0),
+    "exp": _exp,
+    "max": _max,
+}
 
 
 def max_value(fmt, a: int, b: int) -> tuple[int, bool]:
