@@ -50,11 +50,6 @@ __all__ = ["EngineCore", "Backend"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
 
-#: The back end's read latency on the word bus: the engine's memory port's (the buffer's word
-#: comes from the register behind its block RAM).
-READ_LATENCY = BUS_READ_LATENCY
-
-
 class Backend(wiring.Component):
     """Registers and buffer of an engine core behind the word bus (:class:`WordBusSignature`),
     driving ``engine``'s control inputs and memory port.
@@ -72,8 +67,9 @@ class Backend(wiring.Component):
 
     Members
     -------
-    bus : In(WordBusSignature(address_width - 2, READ_LATENCY))
-        Read latency 2: the buffer's word is registered behind the block RAM.
+    bus : In(WordBusSignature(address_width - 2, BUS_READ_LATENCY))
+        Read latency :data:`~kfgen.hdl.linalg.banks.BUS_READ_LATENCY` (2): the buffer's word
+        is registered behind the block RAM.
     irq : Out(1)
         ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
     """
@@ -88,7 +84,7 @@ class Backend(wiring.Component):
                 raise ValueError("CTRL.step's values must name the engine's steps in its order")
         elif len(engine.step_names) != 1:
             raise ValueError("an engine of several steps needs a CTRL.step field")
-        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, READ_LATENCY)),
+        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, BUS_READ_LATENCY)),
                           "irq": Out(1)})
 
     def elaborate(self, platform):
@@ -266,6 +262,12 @@ class EngineCore(wiring.Component):
     def schedules(self) -> dict:
         return dict(self._schedules)
 
+    @property
+    def program_roms(self) -> dict:
+        """The engine's program ROMs as built: stream name -> (words, bits a word)
+        (:attr:`~kfgen.hdl.linalg.engine.Engine.program_roms`)."""
+        return self._engine.program_roms
+
     def cycles(self, step: str) -> int:
         """Clock edges from the one taking the W beat of ``CTRL.start = 1`` (counted) to the
         first one after which ``STATUS.done`` reads 1 (the engine's own count, both ends
@@ -274,7 +276,7 @@ class EngineCore(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, READ_LATENCY)
+        m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, BUS_READ_LATENCY)
         m.submodules.engine = self._engine
         m.submodules.back = back = Backend(self._params, self._engine, self._map)
         wiring.connect(m, front.bus, back.bus)

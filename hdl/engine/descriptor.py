@@ -5,7 +5,6 @@ buffer, and the manifest's ``cycles`` and ``engine`` entries."""
 from __future__ import annotations
 
 from ..describe import Doc
-from ..linalg.store import store_size
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
 
 __all__ = ["engine_docs", "engine_waivers", "engine_manifest", "CYCLES_DEFINITION"]
@@ -48,12 +47,13 @@ def engine_waivers(params) -> str:
 
 def engine_manifest(core) -> dict:
     """The manifest's ``cycles`` (step name -> cycles), ``cycles_definition`` and ``engine``
-    (the machine's timing, the operand memory's words and the program store) of ``core``, an
+    (the machine's timing, the operand memory's words and the program store: the ROMs built,
+    one per PE and shared unit, each holding every step) of ``core``, an
     :class:`~kfgen.hdl.engine.core.EngineCore`."""
     scheds = core.schedules
     first = next(iter(scheds.values()))
     layout, mc = first.program.layout, first.machine
-    store = store_size(list(scheds.values()), layout.size)
+    roms = core.program_roms
     uses_exp = any(op.unit == "exp" for s in scheds.values() for op in s.program.ops)
     return {
         "cycles": {name: core.cycles(name) for name in scheds},
@@ -63,6 +63,8 @@ def engine_manifest(core) -> dict:
                    "sqrt_latency": mc.sqrt_latency, **({"exp_latency": mc.exp_latency} if uses_exp else {}),
                    "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
                    "memory_words": layout.size,
-                   "program_store": {"instructions": store.instructions, "word_bits": store.word_bits,
-                                     "bits": store.bits}},
+                   "program_store": {"instructions": sum(words for words, _ in roms.values()),
+                                     "bits": sum(words * bits for words, bits in roms.values()),
+                                     "roms": {name: {"words": words, "word_bits": bits}
+                                              for name, (words, bits) in roms.items()}}},
     }

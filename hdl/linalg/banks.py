@@ -56,7 +56,7 @@ class BankedMemory(wiring.Component):
     a lane's request (``en``, ``addr``, ``port``, a write's ``data``) is registered, the
     block RAM is read or written the next cycle, and each port's word is registered right
     behind the RAM; a read lane's ``data`` is its port's register, selected by a
-    multiplexer, :data:`~.microcode.READ_LATENCY` (3) cycles after the request (a
+    multiplexer, :data:`~.microcode.LANE_READ_LATENCY` (3) cycles after the request (a
     combinational output: the lane's reader registers it, or computes from it, in that
     cycle). A write reaches the RAM one cycle after its request.
 

@@ -28,16 +28,30 @@ from amaranth.lib.wiring import In, Out
 
 from . import isa
 from .banks import BankedMemory
-from .microcode import compile_steps
+from .microcode import Microcode, compile_steps
 from .sequencer import InstructionStream, instruction_layout
 from .units import ProcessingElement, SharedUnit
 
-__all__ = ["Engine", "OVERHEAD"]
+__all__ = ["program_roms", "Engine", "OVERHEAD"]
 
 #: Cycles a step takes beyond its schedule: ``start``'s register, the streams' lead to the
 #: step's cycle 0 (:attr:`InstructionStream.LEAD`), the last write's lane register and
 #: ``done``'s register, less the cycle of ``start``.
 OVERHEAD = 1 + InstructionStream.LEAD + 1
+
+
+def _stream_layout(code: Microcode, img):
+    """The instruction word of stream ``img`` (no ``mirror`` and ``dst1`` when no instruction
+    of it writes a second address: one write lane)."""
+    mirror = any(w["mirror"] for w in img.words)
+    return instruction_layout(img.unit, code.geometry, code.widths, mirror)
+
+
+def program_roms(code: Microcode) -> dict:
+    """Stream name (``pe0``..., then the shared units) -> (words, bits a word) of the ROM the
+    engine of ``code`` builds for it: the program store as built, every step in each ROM."""
+    return {name: (InstructionStream.rom_depth(img), _stream_layout(code, img).size)
+            for name, img in code.streams.items()}
 
 
 class Engine(wiring.Component):
@@ -103,6 +117,11 @@ class Engine(wiring.Component):
         })
 
     @property
+    def program_roms(self) -> dict:
+        """:func:`program_roms` of this engine's microcode."""
+        return program_roms(self._code)
+
+    @property
     def step_names(self):
         return tuple(self._names)
 
@@ -123,8 +142,7 @@ class Engine(wiring.Component):
         halt = Signal()
         m.d.sync += halt.eq(self.halt)
         for name, img in code.streams.items():
-            mirror = any(w["mirror"] for w in img.words)  # else one write lane, no dst1
-            layout = instruction_layout(img.unit, g, code.widths, mirror)
+            layout = _stream_layout(code, img)
             stream = InstructionStream(img, layout)
             m.submodules[f"{name}_stream"] = ResetInserter(halt)(stream)
             if img.unit == "fma":

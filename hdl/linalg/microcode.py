@@ -18,10 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .isa import UNITS
-from .schedule import READ_LATENCY, Schedule
+from .schedule import LANE_READ_LATENCY, Schedule
 from .store import Instruction, encode
 
-__all__ = ["Geometry", "StreamImage", "Microcode", "compile_steps", "READ_LATENCY"]
+__all__ = ["Geometry", "StreamImage", "Microcode", "compile_steps", "LANE_READ_LATENCY"]
 
 
 def _bits(v: int) -> int:
@@ -108,8 +108,8 @@ def compile_steps(scheds: list[Schedule]) -> Microcode:
             raise ValueError("every step must be scheduled on one machine and one memory layout")
     if mc.pes is None:
         raise ValueError("the engine needs a machine with a finite number of PEs")
-    if mc.read_latency != READ_LATENCY:
-        raise ValueError(f"the engine's memory has read latency {READ_LATENCY}, not {mc.read_latency}")
+    if mc.read_latency != LANE_READ_LATENCY:
+        raise ValueError(f"the engine's memory has read latency {LANE_READ_LATENCY}, not {mc.read_latency}")
     g = Geometry(layout.size, mc.banks)
     shared = [u.name for u in UNITS.values() if u.name != "fma"
               and (not u.optional or any(u.name in s.program.units for s in scheds))]

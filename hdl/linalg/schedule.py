@@ -42,13 +42,13 @@ from dataclasses import dataclass, field
 from . import isa
 from .program import Program
 
-__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "READ_LATENCY",
+__all__ = ["Machine", "Placement", "Schedule", "schedule", "chain_bound", "LANE_READ_LATENCY",
            "UNIT_REGISTER"]
 
 
 #: Cycles from a lane's read to its data in the engine: the lane register in front of the
 #: crossbar, the block RAM, the port's register behind it.
-READ_LATENCY = 3
+LANE_READ_LATENCY = 3
 
 #: Registers a shared unit (divider, square root, exponential, move, comparator) adds to its
 #: own latency: the operands' register in front of an arithmetic unit, so that its first
@@ -67,7 +67,7 @@ class Machine:
     sqrt_latency: int
     banks: int | None = None  # None: 2 * pes (two reads a PE a cycle; the core's choice)
     ports: int = 2
-    read_latency: int = READ_LATENCY
+    read_latency: int = LANE_READ_LATENCY
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
     exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
@@ -142,7 +142,6 @@ class Schedule:
         op = self.program.ops[p.op]
         if p.unit != "fma":
             return [(p.start, a) for a in op.reads]
-        lf = self.machine.fma_latency
         return [(p.start + off, a) for off, a in _reads_at(op, self.machine)]
 
 
@@ -188,13 +187,11 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
     succ = [[] for _ in range(nops)]
     npred = [0] * nops
     last_write, readers = {}, defaultdict(list)
-    raw_preds = [[] for _ in range(nops)]
     for i, op in enumerate(ops):
         preds = set()
         for a in op.reads:
             if a in last_write:
                 preds.add(last_write[a])
-                raw_preds[i].append(last_write[a])
         for a in op.dst:
             preds.update(readers[a])
             if a in last_write:

@@ -62,6 +62,11 @@ class InstructionStream(wiring.Component):
     #: the next-instruction register, the issue decision and the output register.
     LEAD = 4
 
+    @staticmethod
+    def rom_depth(image) -> int:
+        """Words of the ROM holding ``image`` (every step's instructions; one at least)."""
+        return max(1, len(image.words))
+
     def __init__(self, image, layout):
         self._image = image
         steps = len(image.bases)
@@ -72,7 +77,7 @@ class InstructionStream(wiring.Component):
         m = Module()
         img = self._image
         layout = self.ins.shape()
-        depth = max(1, len(img.words))
+        depth = self.rom_depth(img)
         words = [{k: v for k, v in w.items() if k in layout.members} for w in img.words] or [{}]
         m.submodules.rom = rom = memory.Memory(shape=layout, depth=depth, init=words)
         rp = rom.read_port()

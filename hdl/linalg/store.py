@@ -10,19 +10,20 @@ addend is ``init``, or ``-0`` without one, instead of the PE's feedback) and car
 exponential or maximum is one instruction. The sequencer keeps one segment generator per PE
 interleave slot (``Lf`` per PE).
 
-Field widths are the fewest bits that hold every value of the program set (the three UKF
-steps share one store), so the size is exact for this configuration.
+The microcode (:mod:`.microcode`) packs the instructions into one ROM per PE and shared
+unit, each word as wide as that unit's fields need (:attr:`.engine.Engine.program_roms`
+gives the ROMs built).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .isa import CHECK_BITS, UNITS, Check
+from .isa import UNITS, Check
 from .program import Dot
 from .schedule import Schedule
 
-__all__ = ["Instruction", "encode", "StoreSize", "store_size"]
+__all__ = ["Instruction", "encode"]
 
 _CODE = {name: k for k, name in enumerate(UNITS)}  # the unit field's value
 
@@ -87,48 +88,3 @@ def encode(sched: Schedule) -> list[Instruction]:
                                    0, False, True, None, op.dst, True, op.check, _ports(p)))
     out.sort(key=lambda ins: (ins.start, _CODE[ins.unit], ins.pe))
     return out
-
-
-def _bits(v: int) -> int:
-    return max(1, int(v).bit_length())
-
-
-def _sbits(v: int) -> int:
-    return _bits(abs(v)) + 1
-
-
-@dataclass(frozen=True)
-class StoreSize:
-    instructions: int
-    word_bits: int
-    fields: dict
-
-    @property
-    def bits(self) -> int:
-        return self.instructions * self.word_bits
-
-
-def store_size(scheds: list[Schedule], memory_words: int) -> StoreSize:
-    """Size of one store holding every step in ``scheds`` (start deltas reset per step)."""
-    progs = [encode(s) for s in scheds]
-    allins = [i for p in progs for i in p]
-    deltas = [b.start - a.start for p in progs for a, b in zip([p[0]] + p, p)]
-    pes = max(s.machine.pes or 1 for s in scheds)
-    A = _bits(memory_words - 1)
-    f = {
-        "unit": _bits(max([_CODE[u.name] for u in UNITS.values() if not u.optional]
-                          + [_CODE[i.unit] for i in allins])),
-        "pe": _bits(pes - 1),
-        "delta": _bits(max(deltas)),
-        "count": _bits(max(i.count for i in allins)),
-        "a0": A, "sa": max(_sbits(i.sa) for i in allins),
-        "b0": A, "sb": max(_sbits(i.sb) for i in allins),
-        "neg": 1,
-        "first": 1,
-        "init": 1 + A,  # valid + address
-        "dst": 1 + 2 * A,  # a mirror flag, two addresses (the second only when mirrored)
-        "last": 1,
-        "check": CHECK_BITS,
-        "ports": 5,  # a, b, init, dst0, dst1
-    }
-    return StoreSize(len(allins), sum(f.values()), f)

@@ -3,7 +3,7 @@ accumulations) and the shared divider, square root and move unit.
 
 Both take an instruction from their :class:`~.sequencer.InstructionStream` the cycle before
 it starts (``fire``), read their operands at the start cycle ``t`` on the memory ports the
-instruction names (data at ``t + R``, :data:`~.microcode.READ_LATENCY`) and write the result
+instruction names (data at ``t + R``, :data:`~.microcode.LANE_READ_LATENCY`) and write the result
 at ``t + R + L`` after the last issue: the scheduler's machine, cycle for cycle.
 """
 
@@ -18,7 +18,7 @@ from kfgen.hdl.arith.float.fma import FloatFMA
 from . import isa
 from .banks import ReadLane, WriteLane, addr_layout
 from .isa import CHECK_BITS, Check
-from .microcode import READ_LATENCY
+from .microcode import LANE_READ_LATENCY
 
 __all__ = ["ProcessingElement", "SharedUnit", "faults"]
 
@@ -200,14 +200,14 @@ class ProcessingElement(_Unit):
         issue = Signal(data.StructLayout({"en": 1, "neg": 1, "first": 1, "init_en": 1}))
         m.d.comb += [issue.en.eq(head.active), issue.neg.eq(head.neg), issue.first.eq(head.first),
                      issue.init_en.eq(head.init_en)]
-        arrive = _delay(m, issue, READ_LATENCY, "arrive")
+        arrive = _delay(m, issue, LANE_READ_LATENCY, "arrive")
         valid, neg, first, init_en = arrive.en, arrive.neg, arrive.first, arrive.init_en
         init = Signal(fmt.width)
         m.d.sync += init.eq(self.rd[2].data)  # read the cycle before the first issue: held one
         wb0 = self._writeback()
         m.d.comb += [wb0.en.eq(head.active & head.last & (head.rem == 1)),
                      *(getattr(wb0, k).eq(getattr(head, k)) for k in wb_fields)]
-        wb = _delay(m, wb0, READ_LATENCY, "operands")
+        wb = _delay(m, wb0, LANE_READ_LATENCY, "operands")
         sign = Const(fmt.sign_mask, fmt.width)
         m.d.comb += [
             fma.i_valid.eq(valid),
@@ -292,7 +292,7 @@ class SharedUnit(_Unit):
         m.d.comb += [wb0.en.eq(new_en), wb0.dst.eq(new.dst), wb0.pd0.eq(new.pd0), wb0.check.eq(new.check)]
         if self._mirror:
             m.d.comb += [wb0.mirror.eq(new.mirror), wb0.dst1.eq(new.dst1), wb0.pd1.eq(new.pd1)]
-        wb = _delay(m, wb0, READ_LATENCY, "operands")  # the operands arrive
+        wb = _delay(m, wb0, LANE_READ_LATENCY, "operands")  # the operands arrive
         operands = [lane.data for lane in self.rd]
         if self._unit.word is not None:  # a move or a comparison, in the result's register
             y, nan = self._unit.word(fmt, *operands)

@@ -9,7 +9,7 @@ from amaranth.sim import Simulator
 
 from kfgen.gen.verilog import emit
 from kfgen.hdl.linalg.banks import BUS_READ_LATENCY, BankedMemory
-from kfgen.hdl.linalg.microcode import READ_LATENCY, Geometry
+from kfgen.hdl.linalg.microcode import LANE_READ_LATENCY, Geometry
 from kfgen.sim.toolchain import yosys_cmd
 
 G = Geometry(size=64, banks=2)
@@ -24,7 +24,7 @@ def banks():
 
 def test_lanes_ports_and_bus_retry():
     """The engine's lanes reach the RAM a cycle after their request on the port they name,
-    and a read's word is on its lane READ_LATENCY cycles after it; reads of one word share a
+    and a read's word is on its lane LANE_READ_LATENCY cycles after it; reads of one word share a
     port. The bus's lanes take a port the engine leaves free (its write a cycle after the
     request, its read in that cycle, its word two cycles later); a bus read of a word some
     lane writes in that RAM cycle, of a bank some engine lane writes then, or whose bank has
@@ -33,7 +33,7 @@ def test_lanes_ports_and_bus_retry():
     dut = banks()
     unit_rd, bus_rd = dut.rd[:2], dut.rd[-1]
     unit_wr, bus_wr = dut.wr[:2], dut.wr[-1]
-    assert READ_LATENCY == 3 and BUS_READ_LATENCY == 2
+    assert LANE_READ_LATENCY == 3 and BUS_READ_LATENCY == 2
 
     async def tb(ctx):
         log = []  # per cycle: (rd_ok, bus data after the cycle, unit lanes' data after it)

@@ -6,8 +6,10 @@ from collections import Counter, defaultdict
 import pytest
 
 from kfgen.gen.bench_ukf import CHAPTER_CYCLES as CHAPTER  # Table 4, cycles per iteration at 100 MHz
+from kfgen.hdl.linalg.engine import program_roms
+from kfgen.hdl.linalg.microcode import compile_steps
 from kfgen.hdl.linalg.schedule import Machine, chain_bound, schedule
-from kfgen.hdl.linalg.store import encode, store_size
+from kfgen.hdl.linalg.store import encode
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.programs import build_ukf
 from kfgen.hdl.ukf.steps import machine as ukf_machine
@@ -129,11 +131,12 @@ def test_cycles_against_bounds_and_chapter(capsys, div_sqrt):
         bound = max(fmas / pes, sum(chain.values()))
         assert total <= 1.3 * bound
         assert 2 * total <= CHAPTER[pes]
-        size = store_size(list(scheds.values()), ukf.layout.size)
+        roms = program_roms(compile_steps(list(scheds.values())))
         rows.append(f"P={pes:2}: " + ", ".join(f"{k} {s.cycles}" for k, s in scheds.items())
                     + f"; iteration {total} (bound {bound:.0f}, x{total / bound:.2f}; "
                     f"FMAs/P {fmas / pes:.0f}; chapter {CHAPTER[pes]}, /{CHAPTER[pes] / total:.1f}); "
-                    f"store {size.instructions} x {size.word_bits} = {size.bits} bits")
+                    f"program ROMs {sum(w for w, _ in roms.values())} words, "
+                    f"{sum(w * b for w, b in roms.values())} bits")
     with capsys.disabled():
         print("\n" + "\n".join(rows))
 
