@@ -261,11 +261,13 @@ def generate(core: CoreDescriptor, params, flow=None) -> dict[str, str]:
     Raises ``ParamError("name", ...)`` when the top's name is also the name of one of its
     ports or nets (Verilator calls that VARHIDDEN, and some tools refuse it).
     """
+    from .cores import bind
     from .fusesoc import FlowOptions, constraints, core_file
     from .manifest import dumps, manifest
     from .smoke import testbench
     from .verilog import declared_names, emit, header, waivers
 
+    core = bind(core)  # the descriptor as hdl declares it gets its gen and sim hooks
     top = params.name
     component = core.build(params)
     head = header(core.name, top, dataclasses.asdict(params), _command(core, params))

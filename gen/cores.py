@@ -1,12 +1,17 @@
-"""Finds the cores: every ``descriptor`` module under :mod:`kfgen.hdl` that defines ``CORE``.
+"""Finds the cores: every ``descriptor`` module under :mod:`kfgen.hdl` that defines ``CORE``,
+and binds to each what lives above ``hdl`` (which imports neither ``gen`` nor ``sim``): its
+bench module, its smoke-test plan, its application loader, the documents and manifest entries
+made from its register map.
 
 The command line, the manifest writer, ``make verilog`` (:mod:`kfgen.gen.examples`) and
 ``make bench`` (:mod:`kfgen.gen.bench`) all take their list of cores from :func:`discover`,
-so a new core is a new package with a ``descriptor`` module and nothing else to register.
+so a new core is a new package with a ``descriptor`` module, and its line in :data:`_HOOKS`
+when it has a bench, a smoke test or a register map.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import pkgutil
 from functools import cache
@@ -15,7 +20,7 @@ import kfgen.hdl
 
 from kfgen.hdl.describe import CoreDescriptor
 
-__all__ = ["discover"]
+__all__ = ["discover", "bind"]
 
 
 @cache
@@ -30,5 +35,81 @@ def discover() -> dict[str, CoreDescriptor]:
             continue
         if core.name in found:
             raise RuntimeError(f"two cores are named {core.name!r}: {info.name} and another descriptor")
-        found[core.name] = core
+        found[core.name] = bind(core)
     return dict(sorted(found.items()))
+
+
+def _smoke(module):
+    def plan(params, manifest):
+        return importlib.import_module(module).smoke_plan(params, manifest)
+    return plan
+
+
+def _id_register_reads(params, manifest):
+    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
+    from .smoke import id_register_reads
+    return id_register_reads(manifest)
+
+
+def _with_map(extra):
+    """``extra`` with the register map's manifest entries (the component's ``regmap``)."""
+    def with_map(params, component):
+        from .regdoc import map_manifest
+        return {**map_manifest(component.regmap), **extra(params, component)}
+    return with_map
+
+
+def _map_documents(regmap, more=lambda params: {}):
+    """``TOP.rdl``, ``TOP.h``, ``TOP.md`` of the map ``regmap(params)``, and ``more``."""
+    def documents(params):
+        from .regdoc import documents
+        return {**documents(regmap(params), params.name), **more(params)}
+    return documents
+
+
+def _ukf_map(params):
+    from kfgen.hdl.ukf.regmap import ukf_map
+    return ukf_map(params)
+
+
+def _imm_map(params):
+    from kfgen.hdl.imm.regmap import imm_map
+    return imm_map(params)
+
+
+def _ukf_driver(params):
+    from .cdriver import ukf_driver
+    return ukf_driver(params.name, params.format)
+
+
+def _ukf_app(spec):
+    # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
+    from kfgen.sim.ukf.app import load_app
+    return load_app(spec).core_parameters()
+
+
+#: Per core: descriptor fields bound here, or (for ``extra``) a wrapper of the descriptor's own.
+_HOOKS = {
+    "castella": {"bench": "kfgen.gen.bench_castella", "smoke": _smoke("kfgen.sim.castella.smoke")},
+    "fpu": {"bench": "kfgen.gen.bench_fpu", "smoke": _smoke("kfgen.sim.fpu.smoke")},
+    "schur": {"bench": "kfgen.gen.bench_schur", "smoke": _smoke("kfgen.sim.schur.smoke")},
+    "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads, "app": _ukf_app,
+            "documents": _map_documents(_ukf_map, _ukf_driver), "extra": _with_map},
+    "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
+            "documents": _map_documents(_imm_map), "extra": _with_map},
+}
+
+_BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor
+
+
+def bind(core: CoreDescriptor) -> CoreDescriptor:
+    """``core`` (a descriptor as ``hdl`` declares it) with its hooks of :data:`_HOOKS`; a bound
+    descriptor is returned as it is."""
+    if _BOUND.get(core.name) is core:
+        return core
+    hooks = dict(_HOOKS.get(core.name, {}))
+    if "extra" in hooks:
+        hooks["extra"] = hooks["extra"](core.extra)
+    bound = dataclasses.replace(core, **hooks)
+    _BOUND[core.name] = bound
+    return bound

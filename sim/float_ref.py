@@ -26,14 +26,15 @@ hardware testbenches feed both to the units and to :func:`ref_op`.
 from __future__ import annotations
 
 from fractions import Fraction
-from functools import lru_cache
 from math import isqrt
-from numbers import Rational
 
 import numpy as np
 
-from kfgen.hdl.arith.float.format import (FLAG_DZ, FLAG_NV, FLAG_NX, FLAG_OF, FLAG_UF,
-                                          FloatFormat)
+from kfgen.hdl.arith.float.exact import FormatConsts as _Consts
+from kfgen.hdl.arith.float.exact import format_consts as _consts
+from kfgen.hdl.arith.float.exact import round_magnitude as _round
+from kfgen.hdl.arith.float.exact import round_to_format
+from kfgen.hdl.arith.float.format import FLAG_DZ, FLAG_NV, FLAG_NX, FloatFormat
 
 __all__ = ["OPS", "INT32_MIN", "INT32_MAX", "ref_op", "round_to_format", "decode",
            "random_operands", "directed_corpus", "conversion_sweep"]
@@ -45,35 +46,6 @@ _WORD32 = (1 << 32) - 1
 
 # Operand classes returned by _unpack.
 _FIN, _INF, _QNAN, _SNAN = 0, 1, 2, 3
-
-
-class _Consts:
-    """A format's constants as plain attributes (property look-ups cost per operation)."""
-
-    __slots__ = ("fmt", "fb", "p", "bias", "emin", "emax", "sshift", "emask", "fmask", "hidden",
-                 "qbit", "sub_exp", "inf_mag", "nan", "limit")
-
-    def __init__(self, fmt: FloatFormat):
-        self.fmt = fmt
-        self.fb = fmt.frac_bits
-        self.p = fmt.precision
-        self.bias = fmt.bias
-        self.emin = fmt.emin
-        self.emax = fmt.emax
-        self.sshift = fmt.width - 1
-        self.emask = fmt.exp_max_field
-        self.fmask = fmt.frac_mask
-        self.hidden = 1 << fmt.frac_bits
-        self.qbit = fmt.quiet_bit
-        self.sub_exp = fmt.emin - fmt.frac_bits  # weight of a subnormal's LSB
-        self.inf_mag = fmt.inf(0)
-        self.nan = fmt.canonical_nan
-        self.limit = 1 << fmt.width
-
-
-@lru_cache(maxsize=None)
-def _consts(fmt) -> _Consts:
-    return _Consts(FloatFormat.parse(fmt))
 
 
 def _unpack(k: _Consts, w: int, ftz: bool):
@@ -88,52 +60,6 @@ def _unpack(k: _Consts, w: int, ftz: bool):
     if e == 0:
         return _FIN, s, (0 if ftz else f), k.sub_exp
     return _FIN, s, f | k.hidden, e - k.bias - k.fb
-
-
-def _round(k: _Consts, sign: int, mant: int, exp: int, sticky: bool, ftz: bool):
-    """Round the magnitude ``(mant + t) * 2**exp`` (``0 < t < 1`` if ``sticky`` else ``t = 0``).
-
-    ``mant > 0``; with ``sticky``, ``mant`` must have at least ``p + 2`` bits so that the
-    guard bit is in ``mant`` and the sticky bit only breaks ties.
-    """
-    n = mant.bit_length()
-    top = exp + n - 1  # 2**top <= magnitude < 2**(top + 1)
-    emin = k.emin
-    tiny = False
-    if top < emin:
-        tiny = True
-        if top == emin - 1:
-            # Not tiny after all if rounding to p bits with an unbounded exponent carries to
-            # 2**emin: the p significant bits and the guard bit below them are all ones.
-            r = n - k.p
-            if r > 0 and mant >> (r - 1) == (k.hidden << 2) - 1:
-                tiny = False
-        if tiny and ftz:
-            return sign << k.sshift, FLAG_UF | FLAG_NX
-        lsb = k.sub_exp
-        scale = 0
-    else:
-        lsb = top - k.fb
-        scale = top + k.bias - 1
-    r = lsb - exp
-    if r <= 0:
-        q = mant << -r
-        inexact = False
-    else:
-        q = mant >> r
-        rem = mant & ((1 << r) - 1)
-        half = 1 << (r - 1)
-        if rem > half or (rem == half and (sticky or q & 1)):
-            q += 1
-        inexact = bool(rem) or sticky
-    # The hidden bit adds one to the exponent field, so a carry out of the significand
-    # (q == 2**p, or 2**fb for a subnormal) lands on the next binade by itself.
-    mag = (scale << k.fb) + q
-    if mag >= k.inf_mag:
-        return sign << k.sshift | k.inf_mag, FLAG_OF | FLAG_NX
-    if not inexact:
-        return sign << k.sshift | mag, 0
-    return sign << k.sshift | mag, (FLAG_UF | FLAG_NX) if tiny else FLAG_NX
 
 
 def _nan(k, invalid):
@@ -349,30 +275,6 @@ def ref_op(op: str, fmt: FloatFormat, a: int, b: int | None = None, c: int | Non
             raise ValueError(f"{op} operand {name} must be a {k.fmt.name} word "
                              f"(0 <= {name} < 2**{k.fmt.width}), not {w!r}")
     return fn(k, a, b, c, ftz)
-
-
-def round_to_format(fmt: FloatFormat, sign: int, value, subnormals: str = "ieee") -> tuple[int, int]:
-    """Round the exact magnitude ``value`` (a non-negative Fraction or int) with sign ``sign``.
-
-    Returns ``(word, flags)`` with the rules of the module docstring; ``value == 0`` gives
-    the zero of ``sign`` without flags.
-    """
-    if subnormals not in ("ieee", "ftz"):
-        raise ValueError(f"subnormals must be 'ieee' or 'ftz', not {subnormals!r}")
-    if sign not in (0, 1):
-        raise ValueError(f"sign must be 0 or 1, not {sign!r}")
-    if not isinstance(value, Rational) or value < 0:
-        raise ValueError(f"value must be a non-negative Fraction or int, not {value!r}")
-    k = _consts(fmt)
-    num, den = value.numerator, value.denominator
-    if num == 0:
-        return sign << k.sshift, 0
-    ftz = subnormals == "ftz"
-    if den & (den - 1) == 0:
-        return _round(k, sign, num, 1 - den.bit_length(), False, ftz)
-    sh = max(0, k.p + 2 + den.bit_length() - num.bit_length())
-    q, r = divmod(num << sh, den)
-    return _round(k, sign, q, -sh, r != 0, ftz)
 
 
 def decode(fmt: FloatFormat, word: int):

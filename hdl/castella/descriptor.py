@@ -52,11 +52,6 @@ def _build(params):
     return Castella(params)
 
 
-def _smoke(params, manifest):
-    from kfgen.sim.castella.smoke import smoke_plan
-    return smoke_plan(params, manifest)
-
-
 CORE = CoreDescriptor(
     name="castella",
     summary="adaptive two-state (range, velocity) tracker with manoeuvre detection, many tracks",
@@ -68,6 +63,4 @@ CORE = CoreDescriptor(
                         "sustained_measurements_per_cycle": round(c.sustained_rate, 6),
                         "built_constants": p.built_constants},
     examples=({}, {"tracks": 8, "name": "castella8"}),
-    bench="kfgen.gen.bench_castella",
-    smoke=_smoke,
 )

@@ -32,30 +32,14 @@ def _build(params):
 
 
 def _extra(params, core) -> dict:
-    from kfgen.gen.regdoc import map_manifest
-
     sched = core.schedules["iterate"]
     mc = sched.machine
     return {
-        **map_manifest(core.regmap),
         **engine_manifest(core),
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),
                    "chain": chain_bound(sched.program, mc)},
     }
-
-
-def _documents(params) -> dict[str, str]:
-    from kfgen.gen.regdoc import documents
-
-    from .regmap import imm_map
-    return documents(imm_map(params), params.name)
-
-
-def _smoke(params, manifest):
-    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
-    from kfgen.gen.smoke import id_register_reads
-    return id_register_reads(manifest)
 
 
 CORE = CoreDescriptor(
@@ -68,8 +52,5 @@ CORE = CoreDescriptor(
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),
-    documents=_documents,
     waivers=engine_waivers,
-    bench="kfgen.gen.bench_imm",
-    smoke=_smoke,
 )

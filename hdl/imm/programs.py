@@ -40,9 +40,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 
+from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.schur.program import schur_program
-from kfgen.sim.float_ref import round_to_format
 
 from ..linalg.program import Div, Dot, Exp, Layout, Max, Program, Sqrt
 

@@ -96,11 +96,6 @@ def _extra(params: SchurParams, core) -> dict:
     }
 
 
-def _smoke(params, manifest):
-    from kfgen.sim.schur.smoke import smoke_plan
-    return smoke_plan(params, manifest)
-
-
 CORE = CoreDescriptor(
     name="schur",
     summary="inverse and determinant of symmetric positive-definite d x d matrices by the Schur complement, "
@@ -111,6 +106,4 @@ CORE = CoreDescriptor(
     fields_of=_fields,
     extra=_extra,
     examples=({},),
-    bench="kfgen.gen.bench_schur",
-    smoke=_smoke,
 )

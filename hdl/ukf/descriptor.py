@@ -34,33 +34,11 @@ def _build(params):
 
 
 def _extra(params, core) -> dict:
-    from kfgen.gen.regdoc import map_manifest
     return {
-        **map_manifest(core.regmap),
         **engine_manifest(core),
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
     }
-
-
-def _documents(params) -> dict[str, str]:
-    from kfgen.gen.cdriver import ukf_driver
-    from kfgen.gen.regdoc import documents
-
-    from .regmap import ukf_map
-    return {**documents(ukf_map(params), params.name), **ukf_driver(params.name, params.format)}
-
-
-def _from_app(spec: str) -> dict:
-    # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
-    from kfgen.sim.ukf.app import load_app
-    return load_app(spec).core_parameters()
-
-
-def _smoke(params, manifest):
-    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
-    from kfgen.gen.smoke import id_register_reads
-    return id_register_reads(manifest)
 
 
 CORE = CoreDescriptor(
@@ -72,9 +50,5 @@ CORE = CoreDescriptor(
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),
-    documents=_documents,
     waivers=engine_waivers,
-    app=_from_app,
-    bench="kfgen.gen.bench_ukf",
-    smoke=_smoke,
 )

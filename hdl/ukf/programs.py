@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 from math import isqrt
 
+from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
-from kfgen.sim.float_ref import round_to_format
 
 from ..linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
 from .params import UkfParams

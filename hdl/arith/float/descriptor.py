@@ -34,11 +34,6 @@ def _docs() -> dict[str, Doc]:
     }
 
 
-def _smoke(params, manifest):
-    from kfgen.sim.fpu.smoke import smoke_plan
-    return smoke_plan(params, manifest)
-
-
 CORE = CoreDescriptor(
     name="fpu",
     summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i, exp) in any format",
@@ -47,6 +42,4 @@ CORE = CoreDescriptor(
     build=lambda p: p.build(),
     fields_of=lambda p, port: p.field_list(port),
     examples=tuple({"op": op, "name": f"fpu_{op}"} for op in OPS),
-    bench="kfgen.gen.bench_fpu",
-    smoke=_smoke,
 )

@@ -1,0 +1,55 @@
+"""Dependencies point down (ARCHITECTURE.md): ``hdl`` imports neither ``gen`` nor ``sim``,
+not even inside a function, and the engine layer and a core on it never import another
+core's package."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import kfgen.hdl
+
+HDL = Path(kfgen.hdl.__file__).parent
+
+
+def imports(path: Path) -> list[tuple[int, str]]:
+    """(line, absolute module name) of every import statement in ``path``, at any depth."""
+    package = ["kfgen", "hdl", *path.relative_to(HDL).parent.parts]
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            name = ".".join(base + ([node.module] if node.module else []))
+            out += [(node.lineno, f"{name}.{alias.name}" if not node.module else name) for alias in node.names]
+    return out
+
+
+def offending(path: Path, forbidden: tuple[str, ...]) -> list[str]:
+    return [f"{path.relative_to(HDL.parent)}:{line}: {name}" for line, name in imports(path)
+            if any(name == f or name.startswith(f + ".") for f in forbidden)]
+
+
+def test_hdl_imports_neither_gen_nor_sim():
+    bad = [hit for path in sorted(HDL.rglob("*.py")) for hit in offending(path, ("kfgen.gen", "kfgen.sim"))]
+    assert not bad, "hdl imports gen or sim:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("package", ["engine", "linalg", "imm"])
+def test_engine_layer_and_its_cores_import_no_other_core(package):
+    """The engine layer (hdl/engine, hdl/linalg) and a core on it (the IMM) import no core's
+    package but their own: a fifth core needs only the engine layer."""
+    others = tuple(f"kfgen.hdl.{core}" for core in ("ukf", "imm", "castella") if core != package)
+    bad = [hit for path in sorted((HDL / package).rglob("*.py")) for hit in offending(path, others)]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_scan_sees_function_level_and_relative_imports(tmp_path, monkeypatch):
+    """The scan would catch a lazy import inside a function, absolute or relative."""
+    pkg = tmp_path / "hdl" / "core"
+    pkg.mkdir(parents=True)
+    (pkg / "descriptor.py").write_text("def f():\n    from kfgen.sim.x import y\n    from ...gen import cli\n")
+    monkeypatch.setattr(__import__(__name__), "HDL", tmp_path / "hdl")
+    assert offending(pkg / "descriptor.py", ("kfgen.gen", "kfgen.sim")) == [
+        "hdl/core/descriptor.py:2: kfgen.sim.x", "hdl/core/descriptor.py:3: kfgen.gen"]
