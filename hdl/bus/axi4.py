@@ -137,10 +137,11 @@ class WordBusSignature(wiring.Signature):
         return self._read_latency
 
     def __eq__(self, other):
-        return isinstance(other, WordBusSignature) and other.addr_width == self.addr_width
+        return (isinstance(other, WordBusSignature) and other.addr_width == self.addr_width
+                and other.read_latency == self.read_latency)
 
     def __repr__(self):
-        return f"WordBusSignature({self.addr_width})"
+        return f"WordBusSignature({self.addr_width}, read_latency={self.read_latency})"
 
 
 def axi4_slave_members(addr_width: int, id_width: int, prefix: str = "s_axi") -> dict:

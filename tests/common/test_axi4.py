@@ -166,3 +166,13 @@ def test_no_input_to_output_path(read_latency):
     s.add_testbench(tb)
     s.run()
     assert not changed, sorted(set(changed))
+
+
+def test_word_bus_signature_compares_every_parameter():
+    """Two word buses are one interface only with the same address width and read latency (a
+    back end answering a cycle late is not the bus a front end of latency 1 drives)."""
+    assert WordBusSignature(10, 2) == WordBusSignature(10, 2)
+    assert WordBusSignature(10, 1) != WordBusSignature(10, 2)
+    assert WordBusSignature(10, 2) != WordBusSignature(11, 2)
+    assert WordBusSignature(10).flip() == WordBusSignature(10, 1).flip()
+    assert repr(WordBusSignature(10, 2)) == "WordBusSignature(10, read_latency=2)"
