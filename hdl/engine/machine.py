@@ -1,6 +1,3 @@
-# amaranth: UnusedElaboratable=no
-# (The float units made here are only asked their latency, never elaborated: Amaranth's
-# public linter option for that; it covers only what this file creates.)
 """The engine's machine for one engine core's parameters: P processing elements, the memory
 banks and the divider and square root a core's ``pes``, ``banks``, ``div_sqrt`` and ``fmt``
 ask for, and the schedules of a core's programs on it."""
@@ -19,11 +16,10 @@ def _sqrt_stages(fmt, per_op):
     """The square root's stages: its default, except that a pipelined one gets its rounding's
     select registered too (the fewest stages from the default on with a ``round.select``
     register), whose last stage was the pipelined core's critical path on the ECP5."""
-    unit = FloatSqrt(fmt, cycles_per_op=per_op)
-    unit._MustUse__silence = True  # only its plans are read
+    unit = FloatSqrt.plan(fmt, cycles_per_op=per_op)
     if per_op != 1:
         return unit.stages
-    return min((k for k, plan in unit.PLANS.items() if k >= unit.stages and "round.select" in plan),
+    return min((k for k, plan in unit.plans.items() if k >= unit.stages and "round.select" in plan),
                default=unit.stages)
 
 
@@ -34,9 +30,9 @@ def machine(params) -> Machine:
     pipelined (the square root with its rounding's select registered)."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
-    div = FloatDiv(fmt, cycles_per_op=per_op[FloatDiv])
-    sqrt = FloatSqrt(fmt, cycles_per_op=per_op[FloatSqrt], stages=_sqrt_stages(fmt, per_op[FloatSqrt]))
-    return Machine(params.pes, FloatFMA(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
+    div = FloatDiv.plan(fmt, cycles_per_op=per_op[FloatDiv])
+    sqrt = FloatSqrt.plan(fmt, cycles_per_op=per_op[FloatSqrt], stages=_sqrt_stages(fmt, per_op[FloatSqrt]))
+    return Machine(params.pes, FloatFMA.plan(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval)
 
 

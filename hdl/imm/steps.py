@@ -1,5 +1,3 @@
-# amaranth: UnusedElaboratable=no
-# (The float units made here are only asked their latency, never elaborated.)
 """The IMM's program and schedule for one :class:`~kfgen.hdl.imm.params.ImmParams`: the one
 place that turns the core's parameters into the engine's machine and program, so the core,
 its manifest and the golden model in the tests cannot disagree."""
@@ -24,7 +22,7 @@ def programs(params) -> ImmPrograms:
 def machine(params):
     """The engine's (:func:`kfgen.hdl.engine.machine.machine`: P PEs, ``params.banks`` banks, the
     divider and square root of ``params.div_sqrt``), with the exponential's pipeline."""
-    return dataclasses.replace(engine_machine(params), exp_latency=FloatExp(params.fmt).latency)
+    return dataclasses.replace(engine_machine(params), exp_latency=FloatExp.plan(params.fmt).latency)
 
 
 def schedules(params, progs: ImmPrograms | None = None) -> dict:

@@ -1,5 +1,5 @@
 # amaranth: UnusedElaboratable=no
-# (Units built here to be asked their stage plans, or by a parameter check, are never
+# (A unit :meth:`FpuParams.build` makes for a caller that only reads its attributes is never
 # elaborated: Amaranth's public linter option, for what this file creates only.)
 """Parameters of the standalone ``kfgen fpu`` core: which unit, which format, how pipelined.
 
@@ -46,10 +46,9 @@ def _unit_class(op: str):
             "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt, "exp": FloatExp}[op]
 
 
-def _unit(op: str, fmt, subnormals: str, stages: int | None, cycles_per_op: int):
-    kw = {"cycles_per_op": cycles_per_op} if OPS[op][2] else {}
-    unit = _unit_class(op)(fmt, subnormals=subnormals, stages=stages, **kw)
-    return unit
+def _unit_args(op: str, subnormals: str, stages: int | None, cycles_per_op: int) -> dict:
+    """The unit constructor's keyword arguments (``cycles_per_op`` for div and sqrt only)."""
+    return {"subnormals": subnormals, "stages": stages, **({"cycles_per_op": cycles_per_op} if OPS[op][2] else {})}
 
 
 def cycles_per_op_range(op: str, fmt) -> tuple[int, int]:
@@ -63,7 +62,7 @@ def cycles_per_op_range(op: str, fmt) -> tuple[int, int]:
 def stages_range(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1) -> tuple[int, int]:
     """``(lo, hi)``, the register stages a core of ``op`` in ``fmt`` accepts: those the unit
     can place, except none (a core has a clock: at least its output is registered)."""
-    plans = _unit(op, fmt, subnormals, None, cycles_per_op).PLANS
+    plans = _unit_class(op).plan(fmt, **_unit_args(op, subnormals, None, cycles_per_op)).plans
     return max(1, min(plans)), max(plans)
 
 
@@ -151,7 +150,8 @@ class FpuParams:
                 + (f", cycles_per_op {self.cycles_per_op}" if self.cycles_per_op > 1 else "")
             raise ParamError("stages", f"must be an integer in {lo}..{hi} for {what}, not {self.stages!r}")
         check_name(self.name)
-        object.__setattr__(self, "stages", self.build().stages)
+        args = _unit_args(op, subnormals, self.stages, self.cycles_per_op)
+        object.__setattr__(self, "stages", _unit_class(op).plan(fmt, **args).stages)
 
     @property
     def fmt(self) -> FloatFormat:
@@ -159,7 +159,8 @@ class FpuParams:
 
     def build(self):
         """The Amaranth unit for these parameters."""
-        return _unit(self.op, self.format, self.subnormals, self.stages, self.cycles_per_op)
+        args = _unit_args(self.op, self.subnormals, self.stages, self.cycles_per_op)
+        return _unit_class(self.op)(self.format, **args)
 
     def field_list(self, port: str):
         """Packed fields of a data port (manifest): floats carry ``format`` instead of ``frac_bits``."""

@@ -11,13 +11,14 @@ each stage count, so the latency is exactly the number of registers on the path.
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import NamedTuple
 
 from amaranth.hdl import C, Cat, Const, Module, Mux, Shape, Signal, Value, signed, unsigned
 from amaranth.lib import data, wiring
 
 from .format import FloatFormat
 
-__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "FloatUnit", "Cuts", "unpack",
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "FloatUnit", "UnitPlan", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
 
 SUBNORMAL_MODES = ("ieee", "ftz")
@@ -58,6 +59,16 @@ def check_unit_params(fmt, subnormals, stages, plans, default):
     return fmt, stages
 
 
+class UnitPlan(NamedTuple):
+    """A float unit's timing for one set of parameters (:meth:`FloatUnit.plan`)."""
+
+    stages: int
+    latency: int
+    initiation_interval: int
+    #: Stage count -> boundaries that get a register: every count the unit can place.
+    plans: dict
+
+
 class FloatUnit(wiring.Component):
     """Common frame of the pipelined units: parameters, properties and the output stage.
 
@@ -71,18 +82,30 @@ class FloatUnit(wiring.Component):
     PLANS: dict[int, tuple[str, ...]] = {}
     DEFAULT_STAGES = 0
 
+    def __new__(cls, *args, src_loc_at=0, **kwargs):
+        cls.plan(*args, **kwargs)  # a bad argument raises before the unit exists
+        # (the caller's frame is where the unit is made, for Amaranth's UnusedElaboratable)
+        return super().__new__(cls, *args, src_loc_at=src_loc_at + 1, **kwargs)
+
+    @classmethod
+    def plan(cls, *args, **kwargs) -> UnitPlan:
+        """The :class:`UnitPlan` of the unit the same arguments would construct, without
+        constructing it (so no unit is left unelaborated); raises ``ValueError`` as the
+        constructor does."""
+        probe = object.__new__(cls)  # the constructor's checks, and no component
+        probe._plan_only = True
+        cls.__init__(probe, *args, **kwargs)
+        return UnitPlan(probe.stages, probe.latency, probe.initiation_interval, probe.PLANS)
+
     def __init__(self, fmt, subnormals, stages, ports):
         """``ports(fmt)`` gives the signature members for the checked format."""
-        try:
-            fmt = as_format(fmt)
-            self.PLANS, self.DEFAULT_STAGES = self.stage_plans(fmt, subnormals)
-            self._fmt, self._stages = check_unit_params(fmt, subnormals, stages, self.PLANS,
-                                                        self.DEFAULT_STAGES)
-        except ValueError:
-            self._MustUse__silence = True  # a rejected unit is not an unused one
-            raise
+        fmt = as_format(fmt)
+        self.PLANS, self.DEFAULT_STAGES = self.stage_plans(fmt, subnormals)
+        self._fmt, self._stages = check_unit_params(fmt, subnormals, stages, self.PLANS,
+                                                    self.DEFAULT_STAGES)
         self._subnormals = subnormals
-        super().__init__(ports(self._fmt))
+        if not getattr(self, "_plan_only", False):
+            super().__init__(ports(self._fmt))
 
     def stage_plans(self, fmt: FloatFormat, subnormals: str):
         """``(plans, default stage count)`` for ``fmt``: the class's ``PLANS`` and
