@@ -23,7 +23,7 @@ from cocotbext.axi import AxiResp
 
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
-from kfgen.sim.ukf.tb import TB, holes, setup, wait_idle
+from kfgen.sim.ukf.tb import TB, holes, setup, wait_idle, watchdog_fires
 
 #: The regions software writes before the first iteration, in buffer order.
 INPUTS = ("pi", "mu", "F", "Q", "H", "R", "x_model", "P_model")
@@ -107,7 +107,8 @@ async def iterations(dut):
 @cocotb.test()
 async def errors(dut):
     """Holes, read-only regions, strobes, writes and start while busy, reads while busy, soft
-    reset mid-iteration, an innovation covariance that is not positive definite."""
+    reset mid-iteration, an innovation covariance that is not positive definite; a wait with
+    no start ends at the watchdog's bound."""
     tb = await setup(dut, ImmTB)
     p = tb.params
     axi = tb.axi
@@ -129,7 +130,7 @@ async def errors(dut):
         await tb.check(name)
     from kfgen.sim.linalg.exec import run
     run(tb.ukf.steps["iterate"], tb.gold)
-    await wait_idle(tb)
+    await wait_idle(tb, "iterate")
     status = await tb.read_reg("STATUS")
     assert status == tb.bits("STATUS", done=1, err_busy=1), hex(status)
     for name in ("mu", "x_model", "P_model", "x", "P"):
@@ -155,6 +156,7 @@ async def errors(dut):
     assert st.pivot
     assert not await tb.read_reg("STATUS") & 1
     await tb.check("mu")
+    await watchdog_fires(tb, "iterate")
 
 
 @cocotb.test()

@@ -15,7 +15,8 @@ Both go through :class:`CheckedBus`, which mirrors every access on :class:`Golde
 golden model behind the same address map: writes land in its memory, a write of
 ``CTRL.start`` runs the step's program) and asserts that every word read from the buffer,
 and every step's ``STATUS``, equals the model's. Nothing awaits every clock: the test waits
-on ``irq`` (or polls ``STATUS``) and on the master's transfers.
+on ``irq`` (or polls ``STATUS``) and on the master's transfers, each wait for a step bounded
+by :func:`kfgen.sim.watchdog.bound` of its manifest cycles.
 
 Environment: ``KFGEN_TB_MANIFEST`` (the core's ``TOP.json``), ``KFGEN_APP`` (``module:Class``),
 ``KFGEN_STEPS`` (iterations), ``KFGEN_SEED``, ``KFGEN_BEATS`` (``burst`` or ``single``: every
@@ -44,6 +45,7 @@ from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import Status, from_words, run
+from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
 
 from .app import load_app
 from .software import initial_words, iteration
@@ -122,6 +124,7 @@ class CheckedBus:
         self.words_moved = 0
         self.ctrl_addr = regs["CTRL"]["offset"]
         self.running = None  # (step, cycle of its start) from CTRL.start to the STATUS clear
+        self.expired = None  # the watchdog's Expired, once a wait has run past its bound
 
     @staticmethod
     def now():
@@ -163,6 +166,11 @@ class CheckedBus:
         self.words_moved += len(words)
 
     async def read32(self, addr):
+        if self.expired is not None and addr == self.status_addr:
+            # the watchdog has fired: STATUS answers done | err_busy without a transfer, so that
+            # a driver's poll loop in C (which cannot see the exception) ends and the test
+            # reports the watchdog's Expired
+            return 1 << self.status_bits["done"] | 1 << self.status_bits["err_busy"]
         got = await self.axi.read(addr, 4)
         assert got.resp == AxiResp.OKAY, (hex(addr), got.resp)
         word = int.from_bytes(got.data, "little")
@@ -188,12 +196,20 @@ class CheckedBus:
             self.running = None
 
     async def wait_event(self):
-        """Until ``irq`` is high (``wait = irq``), or one poll interval."""
-        if self.wait == "irq":
-            if not int(self.dut.irq.value):
-                await RisingEdge(self.dut.irq)
-        else:
-            await ClockCycles(self.dut.clk, 1)
+        """Until ``irq`` is high (``wait = irq``), or one poll interval; :class:`kfgen.sim.watchdog.Expired`
+        once the running step (the longest, with none started) is past its bound."""
+        cycles = self.manifest["cycles"]
+        step, start = self.running or (max(cycles, key=cycles.get), self.now())
+        dog = Watchdog(step, cycles[step], start)
+        try:
+            if self.wait == "irq":
+                await wait_irq(self.dut, dog, self.now)
+            else:
+                dog.check(self.now())
+                await ClockCycles(self.dut.clk, 1)
+        except Expired as exc:
+            self.expired = exc
+            raise
 
 
 class AxiIO:

@@ -9,6 +9,9 @@ reference (:class:`kfgen.sim.ukf.reference.AugmentedUKF`).
 
 Environment: ``KFGEN_TB_MANIFEST``, the core's ``TOP.json``; ``KFGEN_TB_SEED`` (default 1);
 ``KFGEN_TB_ITERATIONS`` (default 5).
+
+No wait is unbounded: waits on ``irq`` and polls of ``STATUS`` give up after
+:func:`kfgen.sim.watchdog.bound` of the step's manifest cycles, naming the step.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import os
 import cocotb
 import numpy as np
 from cocotb.clock import Clock
+from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
 from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
@@ -27,6 +31,9 @@ from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import from_words, run, to_words
 from kfgen.sim.streams import StreamChecker
+from kfgen.sim.watchdog import Expired, Watchdog, bound, poll, wait_irq
+
+CLOCK_NS = 10
 
 X0 = [0.5, -1.25]
 P0 = [[0.4, 0.1], [0.1, 0.3]]
@@ -73,7 +80,7 @@ class TB:
         self.rng = np.random.default_rng(int(os.environ.get("KFGEN_TB_SEED", "1")))
         self.cycle = 0
         self.w_beats, self.irq_rises = [], []
-        cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+        cocotb.start_soon(Clock(dut.clk, CLOCK_NS, unit="ns").start())
         self.axi = AxiMaster(AxiBus.from_prefix(dut, "s_axi"), dut.clk, dut.rst)
         logging.getLogger(f"cocotb.{dut._name}.s_axi").setLevel(logging.WARNING)
         # KFGEN_TB_CALM=1 (long runs): no per-clock monitor (no handshake checkers, no cycle
@@ -120,6 +127,11 @@ class TB:
             if now and not irq:
                 self.irq_rises.append(self.cycle)
             irq = now
+
+    @staticmethod
+    def now():
+        """The clock cycles simulated so far (also in calm runs, which count none)."""
+        return int(get_sim_time("ns")) // CLOCK_NS
 
     # ------------------------------------------------------------- registers
     def field(self, reg, name):
@@ -186,13 +198,13 @@ class TB:
         beats = len(self.w_beats)
         rises = len(self.irq_rises)
         assert await self.start(name) == AxiResp.OKAY
+        dog = Watchdog(name, self.manifest["cycles"][name], self.now())
         if self.calm:  # no cycle count (None): wait for irq, then check the status as below
-            if not self.dut.irq.value:
-                await RisingEdge(self.dut.irq)
+            await wait_irq(self.dut, dog, self.now)
             measured = None
         else:
             if len(self.irq_rises) == rises:
-                await RisingEdge(self.dut.irq)
+                await wait_irq(self.dut, dog, self.now)
                 await RisingEdge(self.dut.clk)  # the monitor has recorded the rise
             # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1
             # after edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next
@@ -294,16 +306,36 @@ async def holes(tb):
     assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
 
 
-async def wait_idle(tb):
+async def wait_idle(tb, step):
+    """Poll STATUS until ``step`` (running) is no longer busy, within the watchdog's bound."""
     busy = tb.field("STATUS", "busy")["lsb"]
-    while (await tb.read_reg("STATUS")) >> busy & 1:
-        pass
+
+    async def pause():
+        pass  # a read takes cycles of its own
+
+    await poll(lambda: tb.read_reg("STATUS"), lambda word: not word >> busy & 1, pause, tb.now, step,
+               tb.manifest["cycles"][step])
+
+
+async def watchdog_fires(tb, step):
+    """With the core idle and no start, a wait for ``step``'s irq fails within the bound,
+    naming the step: no wait of these testbenches can hang."""
+    assert not tb.dut.irq.value
+    limit = bound(tb.manifest["cycles"][step])
+    try:
+        await wait_irq(tb.dut, Watchdog(step, tb.manifest["cycles"][step], tb.now()), tb.now)
+    except Expired as exc:
+        assert f"step {step} " in str(exc) and f"bound {limit} " in str(exc), str(exc)
+        assert limit < exc.waited <= limit + 2, (exc.waited, limit)
+    else:
+        raise AssertionError(f"the watchdog let a wait for {step} end without irq")
 
 
 @cocotb.test()
 async def errors(dut):
     """Holes, read-only blocks, writes while busy, start while busy, reads while busy, soft
-    reset mid-step, a P that is not positive definite."""
+    reset mid-step, a P that is not positive definite; a wait with no start ends at the
+    watchdog's bound."""
     tb = await setup(dut)
     p = tb.params
     axi = tb.axi
@@ -326,7 +358,7 @@ async def errors(dut):
     for name in ("x", "Q", "R"):  # (written by this test; z keeps an earlier test's words)
         await tb.check(name)
     run(tb.ukf.steps["sig_gen"], tb.gold)
-    await wait_idle(tb)
+    await wait_idle(tb, "sig_gen")
     status = await tb.read_reg("STATUS")
     assert status == tb.bits("STATUS", done=1, err_busy=1), hex(status)
     await tb.check("x")
@@ -347,3 +379,4 @@ async def errors(dut):
     assert st.pivot
     assert not await tb.read_reg("STATUS") & 1
     await tb.check("sigma_points")
+    await watchdog_fires(tb, "sig_gen")

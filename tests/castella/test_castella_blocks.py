@@ -15,7 +15,7 @@ from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import CastellaParams, Fmt
 from kfgen.sim.castella import model
 
-from conftest import run_comb, run_staged
+from helpers import run_comb, run_staged
 
 
 

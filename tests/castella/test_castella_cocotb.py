@@ -13,7 +13,7 @@ from kfgen.sim.castella import scenarios
 from kfgen.sim.castella.run import run_castella
 from kfgen.sim.verilator import pack_fields
 
-from conftest import VERILATOR_CACHE, kfgen
+from helpers import VERILATOR_CACHE, kfgen
 
 pytestmark = pytest.mark.verilator
 

@@ -6,7 +6,7 @@ from amaranth.lib import wiring
 
 from kfgen.gen.api import FlowOptions, GeneratedCore, ParamError, component, cores, generate_core
 
-from conftest import kfgen
+from helpers import kfgen
 
 
 def test_generate_core_gives_the_command_lines_files(tmp_path):

@@ -18,7 +18,7 @@ from kfgen.sim.toolchain import lint
 from kfgen.sim.verilator import build, run_test
 
 import axi4_tb
-from conftest import VERILATOR_CACHE
+from helpers import VERILATOR_CACHE
 from axi4_tb import ADDR_WIDTH, ID, ID_VALUE, ID_WIDTH, MEM, MEM_WORDS, SCRATCH
 
 TOP = "axi4_test"

@@ -12,7 +12,7 @@ from kfgen.gen.cores import discover
 from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.params import RANGES, CastellaParams
 
-from conftest import kfgen, kfgen_in_process
+from helpers import kfgen, kfgen_in_process
 
 FIELD_PORTS = ("s_axis_tdata", "s_axis_tuser", "m_axis_tdata", "m_axis_tuser")
 

@@ -19,7 +19,7 @@ import yaml
 from kfgen.gen import __version__
 from kfgen.sim.yosys_tcl import TclUnsupported, translate
 
-from conftest import kfgen
+from helpers import kfgen
 
 # One worker generates the cores for every test here.
 pytestmark = pytest.mark.xdist_group("fusesoc")

@@ -12,7 +12,7 @@ from amaranth.lib.wiring import In, Out
 from kfgen.gen.verilog import emit, waivers
 from kfgen.sim.toolchain import ToolMissing, iverilog, lint, yosys_cmd
 
-from conftest import kfgen
+from helpers import kfgen
 
 CONFIGS = {"castella": [], "castella8": ["--tracks", "8"]}
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, kfgen
+from helpers import ROOT, kfgen
 
 # One worker builds the wheel and its venv for every test here.
 pytestmark = pytest.mark.xdist_group("wheel")

@@ -26,7 +26,7 @@ from kfgen.sim.fpu.exp_exact import (_format, _round_ratio, directed_words, exp_
 from kfgen.sim.fpu.exp_model import exp_model, round_vector
 from kfgen.sim.fpu.run import run_fpu_group
 
-from conftest import VERILATOR_CACHE, kfgen
+from helpers import VERILATOR_CACHE, kfgen
 
 D = decimal.Decimal
 CTX = decimal.Context(prec=120)

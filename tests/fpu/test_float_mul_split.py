@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from amaranth.hdl import Module, Signal
 
-from conftest import run_comb
+from helpers import run_comb
 
 
 @pytest.mark.parametrize("wa,wb", [(2, 2), (3, 8), (8, 8), (11, 11), (17, 17), (18, 24), (24, 24),

@@ -14,7 +14,7 @@ from kfgen.hdl.arith.float.params import (CLOCK_MHZ, OPS, FpuParams, cycles_per_
 from kfgen.hdl.describe import ParamError
 from kfgen.sim.toolchain import iverilog, lint
 
-from conftest import ROOT, kfgen, kfgen_in_process
+from helpers import ROOT, kfgen, kfgen_in_process
 
 
 @pytest.mark.parametrize("args,param", [

@@ -16,7 +16,7 @@ from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.sim.float_ref import conversion_sweep, directed_corpus, random_operands, ref_op
 from kfgen.sim.fpu.run import run_fpu_group
 
-from conftest import VERILATOR_CACHE, kfgen
+from helpers import VERILATOR_CACHE, kfgen
 
 pytestmark = pytest.mark.verilator
 

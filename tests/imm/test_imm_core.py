@@ -14,7 +14,7 @@ from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from conftest import VERILATOR_CACHE, kfgen, kfgen_in_process
+from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process
 
 TB = "kfgen.sim.imm.tb"
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]

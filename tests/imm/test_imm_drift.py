@@ -12,7 +12,7 @@ from kfgen.sim.imm.golden import run_golden
 from kfgen.sim.imm.reference import run_reference
 from kfgen.sim.imm.scenario import satlink
 
-from conftest import VERILATOR_CACHE
+from helpers import VERILATOR_CACHE
 
 
 def drift(trace: dict, ref, condition) -> dict:

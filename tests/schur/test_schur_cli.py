@@ -13,7 +13,7 @@ from kfgen.hdl.describe import ParamError
 from kfgen.hdl.schur.descriptor import CORE
 from kfgen.hdl.schur.params import SIZE_MAX, SchurParams
 
-from conftest import kfgen
+from helpers import kfgen
 
 
 def _range(op, fmt="binary32", cpo=1):

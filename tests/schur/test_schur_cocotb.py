@@ -21,7 +21,7 @@ from kfgen.sim.schur.model import stimulus
 from kfgen.sim.schur.run import run_schur_group
 from kfgen.sim.toolchain import lint
 
-from conftest import VERILATOR_CACHE
+from helpers import VERILATOR_CACHE
 
 pytestmark = pytest.mark.verilator
 

@@ -15,7 +15,7 @@ from kfgen.sim.ukf.apps.nanosat import (G, STEPS, Nanosat, attitude_error_deg, e
 from kfgen.sim.ukf.apps.tracker import Tracker
 from kfgen.sim.ukf.software import StepError
 
-from conftest import kfgen
+from helpers import kfgen
 
 NANOSAT = "kfgen.sim.ukf.apps.nanosat:Nanosat"
 #: Iterations of the default golden run: past convergence (about 0.3 s) and half a second more.

@@ -11,7 +11,7 @@ from kfgen.sim.ukf.app import load_app
 from kfgen.sim.ukf.apps.nanosat import attitude_error_deg
 from kfgen.sim.ukf.run import build_driver, build_ukf_core, run_cosim
 
-from conftest import VERILATOR_CACHE, kfgen
+from helpers import VERILATOR_CACHE, kfgen
 
 NANOSAT = "kfgen.sim.ukf.apps.nanosat:Nanosat"
 TRACKER = "kfgen.sim.ukf.apps.tracker:Tracker"

@@ -13,7 +13,7 @@ from kfgen.hdl.ukf.steps import schedules
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from conftest import VERILATOR_CACHE, kfgen, kfgen_in_process
+from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process
 
 TOP = "ukf_small"
 SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
