@@ -35,12 +35,15 @@ def _extra(params, core) -> dict:
     from kfgen.hdl.linalg.schedule import chain_bound
     from kfgen.hdl.linalg.store import store_size
 
+    from .regmap import CYCLES
+
     sched = core.schedules["iterate"]
     layout, mc = sched.program.layout, sched.machine
     store = store_size([sched], layout.size)
     return {
         **map_manifest(core.regmap),
         "cycles": {"iterate": core.cycles("iterate")},
+        "cycles_keys": dict(CYCLES),
         "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
                              "first edge after which STATUS.done reads 1, both counted; irq rises on the "
                              "next edge",

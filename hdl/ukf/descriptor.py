@@ -52,6 +52,8 @@ def _extra(params, core) -> dict:
     from kfgen.gen.regdoc import map_manifest
     from kfgen.hdl.linalg.store import store_size
 
+    from .regmap import STEPS
+
     scheds = core.schedules
     layout = next(iter(scheds.values())).program.layout
     store = store_size(list(scheds.values()), layout.size)
@@ -59,6 +61,8 @@ def _extra(params, core) -> dict:
     return {
         **map_manifest(core.regmap),
         "cycles": {name: core.cycles(name) for name in scheds},
+        "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
+                        for v in STEPS},
         "cycles_definition": "clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
                              "first edge after which STATUS.done reads 1, both counted; irq rises on the "
                              "next edge",

@@ -27,6 +27,13 @@ first, at consecutive addresses. Matrices are row-major: element (i, j) of a ``r
 region is at ``offset + (i * cols + j) * bytes per element``; ``sigma_points`` holds N points
 of M words, point by point, as an N x M matrix.
 
+Regions
+-------
+Each region is declared with its description, its ``role`` (:data:`REGION_ROLES`: ``input``
+software writes and the core only reads, ``state`` the core reads and overwrites in place,
+``output`` the core writes) and its ``layout`` (what its rows and columns hold); the manifest,
+the C header and the Markdown document all print them from the declaration.
+
 Access
 ------
 ``ro`` (register or region): reads return the value, a write answers SLVERR and changes
@@ -57,7 +64,8 @@ from typing import NamedTuple
 from ..describe import ParamError
 
 __all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "ukf_map", "place_map", "status_registers",
-           "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS"]
+           "CORE_ID", "MAP_VERSION", "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS",
+           "REGION_ROLES", "STEPS"]
 
 #: ID.core of the UKF (ASCII 'U').
 CORE_ID = 0x55
@@ -68,6 +76,13 @@ BUS_DATA_WIDTH = 32
 BUS_ID_WIDTH = 4
 FIELD_ACCESS = ("ro", "rw", "w1c", "w1p")
 BLOCK_ACCESS = ("ro", "rw")
+#: What a buffer region is for (a memory's ``role``), and what each role means.
+REGION_ROLES = {
+    "input": "software writes it, the core only reads it",
+    "state": "software writes the initial value; the core reads it and overwrites it in place, a step or "
+             "iteration at a time",
+    "output": "the core writes it and software reads it; the core never reads what was there before",
+}
 
 _WORD = BUS_DATA_WIDTH // 8
 
@@ -168,10 +183,14 @@ class Memory:
     access: str
     desc: str
     order: str = "row-major"
+    role: str = ""     # one of REGION_ROLES ("" undeclared)
+    layout: str = ""   # what a row and a column hold, how models or points are stacked
 
     def __post_init__(self):
         if self.access not in BLOCK_ACCESS:
             raise ValueError(f"memory {self.name}: access must be one of {BLOCK_ACCESS}, not {self.access!r}")
+        if self.role and self.role not in REGION_ROLES:
+            raise ValueError(f"memory {self.name}: role must be one of {tuple(REGION_ROLES)}, not {self.role!r}")
         if self.words not in (1, 2) or self.offset % _WORD:
             raise ValueError(f"memory {self.name}: {self.words} words per element at {self.offset:#x}")
 
@@ -266,6 +285,14 @@ class RegisterMap:
 
 # ------------------------------------------------------------------------------ the UKF's map
 
+#: The steps CTRL.step names, and the manifest's ``cycles`` keys.
+STEPS = (
+    Value("sig_gen", 0, "sigma points of (x, P, Q, R) into sigma_points (eqs. 3-8, 21-24)"),
+    Value("predict", 1, "x, P <- mean and covariance of sigma_points_f (eqs. 10-11)"),
+    Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
+)
+
+
 def _registers(params) -> tuple[Register, ...]:
     fmt = params.fmt
     events = (
@@ -294,11 +321,8 @@ def _registers(params) -> tuple[Register, ...]:
                                         "while busy (STATUS.err_busy)"),
             Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running step stops, the core is idle, "
                                         "STATUS is cleared; the buffer is kept"),
-            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)", values=(
-                Value("sig_gen", 0, "sigma points of (x, P, Q, R) into sigma_points (eqs. 3-8, 21-24)"),
-                Value("predict", 1, "x, P <- mean and covariance of sigma_points_f (eqs. 10-11)"),
-                Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
-            )),
+            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)",
+                  values=STEPS),
         )),
         *status_registers(events, "step", params.irq),
     ]
@@ -322,19 +346,29 @@ def status_registers(events, what: str, irq: bool) -> list[Register]:
     return regs
 
 
-def _regions(params) -> tuple[tuple[str, int, int, str, str], ...]:
-    """(name, rows, cols, access, desc) in buffer order: the engine's order (ukf_steps)."""
+def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
+    """(name, rows, cols, access, role, desc, layout) in buffer order: the engine's order
+    (ukf_steps); role one of REGION_ROLES."""
     n, m, nw, nv, M, N = params.n, params.m, params.nw, params.nv, params.M, params.N
+    column = "a column: element i in row i"
     return (
-        ("x", n, 1, "rw", "state estimate x; after predict x^-, after update x^+"),
-        ("P", n, n, "rw", "state covariance P, full; after predict P^-, after update P^+"),
-        ("Q", nw, nw, "rw", "process-noise covariance Q, full"),
-        ("R", nv, nv, "rw", "measurement-noise covariance R, full"),
-        ("sigma_points", N, M, "ro", "sigma points chi_i of x^a = [x; w; v], point by point (written by "
-                                     "sig_gen, eq. 8)"),
-        ("sigma_points_f", N, n, "rw", "f(chi_i), point by point (written by software after sig_gen)"),
-        ("sigma_points_h", N, m, "rw", "h(chi_i^-), point by point (written by software after predict)"),
-        ("z", m, 1, "rw", "measurement z"),
+        ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
+         f"{column} (n = {n})"),
+        ("P", n, n, "rw", "state", "state covariance P, full; after predict P^-, after update P^+",
+         f"n x n, row-major, both triangles (n = {n})"),
+        ("Q", nw, nw, "rw", "input", "process-noise covariance Q, full",
+         f"nw x nw, row-major, both triangles (nw = {nw})"),
+        ("R", nv, nv, "rw", "input", "measurement-noise covariance R, full",
+         f"nv x nv, row-major, both triangles (nv = {nv})"),
+        ("sigma_points", N, M, "ro", "output", "sigma points chi_i of x^a = [x; w; v], point by point "
+                                               "(written by sig_gen, eq. 8)",
+         f"N points of M elements, point i in row i: columns 0 .. n - 1 its x, then nw of w, then nv of v "
+         f"(N = {N}, M = {M}, n = {n}, nw = {nw}, nv = {nv})"),
+        ("sigma_points_f", N, n, "rw", "input", "f(chi_i), point by point (written by software after sig_gen)",
+         f"N points of n elements, f(chi_i) in row i (N = {N}, n = {n})"),
+        ("sigma_points_h", N, m, "rw", "input", "h(chi_i^-), point by point (written by software after predict)",
+         f"N points of m elements, h(chi_i^-) in row i (N = {N}, m = {m})"),
+        ("z", m, 1, "rw", "input", "measurement z", f"{column} (m = {m})"),
     )
 
 
@@ -352,7 +386,7 @@ def ukf_map(params) -> RegisterMap:
 
 def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
     """The map of ``registers`` (from 0x0) and a buffer of ``regions`` ((name, rows, cols,
-    access, desc), one after another in the engine's order) of ``fmt`` elements, at the
+    access, role, desc, layout), one after another in the engine's order) of ``fmt`` elements, at the
     smallest power of two above the registers and at least the buffer's size.
 
     Raises
@@ -361,7 +395,7 @@ def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
         ``address_width`` when ``address_width`` is too narrow for the map.
     """
     words = 1 if fmt.width <= BUS_DATA_WIDTH else 2
-    elements = sum(rows * cols for _, rows, cols, _, _ in regions)
+    elements = sum(rows * cols for _, rows, cols, *_ in regions)
     need = max(elements * words * _WORD, registers[-1].end)
     base = 1 << (need - 1).bit_length()
     width = base.bit_length()  # registers in [0, base), buffer in [base, 2 base)
@@ -370,8 +404,8 @@ def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
                                           f"{elements * words * _WORD}-byte buffer at {base:#x}), not "
                                           f"{address_width}")
     memories, offset = [], base
-    for name, rows, cols, access, desc in regions:
-        mem = Memory(name, offset, (rows, cols), fmt.name, words, access, desc)
+    for name, rows, cols, access, role, desc, layout in regions:
+        mem = Memory(name, offset, (rows, cols), fmt.name, words, access, desc, role=role, layout=layout)
         memories.append(mem)
         offset = mem.end
     return RegisterMap(registers, tuple(memories), address_width or width, base)
