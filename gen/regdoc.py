@@ -174,7 +174,7 @@ def _macros(regmap, top: str) -> str:
     lines += [f"//   {k:<7} {v}" for k, v in REGION_ROLES.items()]
     for m in regmap.memories:
         N = f"{T}__{m.name.upper()}"
-        lines += ["", f"// {m.name}: {m.desc}.", f"// {_role_text(m)}.", f"// Layout: {m.layout}.",
+        lines += ["", f"// {m.name} ({m.role}): {m.desc}.", f"// Layout: {m.layout}.",
                   f"#define {N}_OFFSET {m.offset:#x}u",
                   f"#define {N}_ROWS {m.rows}u",
                   f"#define {N}_COLS {m.cols}u",

@@ -117,7 +117,7 @@ def test_header_and_document_carry_the_region_texts(generated):
         for text in (m["description"], m["layout"], REGION_ROLES[m["role"]]):
             assert text in header, (m["name"], text)
             assert html.escape(text, quote=False) in document, (m["name"], text)
-        assert f"// {m['name']}: {m['description']}." in header
+        assert f"// {m['name']} ({m['role']}): {m['description']}." in header
         assert f"Role: {m['role']} " in document
 
 
