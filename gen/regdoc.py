@@ -4,13 +4,14 @@ through PeakRDL, a C header and a Markdown document.
 
 Memories are SystemRDL ``external mem`` blocks (``memwidth`` 32, or 64 for elements of two
 bus words, low word first): PeakRDL-markdown gives each its own section (address, size, the
-description with shape, order and format) without unrolling thousands of words, and
+description with role, layout, shape, order and format) without unrolling thousands of words, and
 PeakRDL-cheader gives the register field macros (``TOP__REG__FIELD_bm`` / ``_bp`` / ``_bw`` /
 ``_reset``) and a ``TOP_t`` struct with the regions as arrays. PeakRDL-cheader writes no
 offsets, shapes or enumerated values as macros, so the header ends with a block of them from
 the same map: ``TOP__NAME_OFFSET`` for every register and region, ``TOP__REGION_ROWS`` /
 ``_COLS`` / ``_SIZE`` and ``TOP__REGION_ADDR(row, col)`` (byte offset of an element from the
-core's base), ``TOP__ELEMENT_SIZE`` and ``TOP__REG__FIELD__VALUE`` for named field values.
+core's base), each region's under a comment with its role, description and layout,
+``TOP__ELEMENT_SIZE`` and ``TOP__REG__FIELD__VALUE`` for named field values.
 
 Every text is deterministic: no dates, no paths (the exporters run in a temporary directory
 and only the file's base name, ``TOP.h``, reaches the header guard).
