@@ -1,16 +1,17 @@
-"""What a register and memory map (:class:`kfgen.hdl.ukf.regmap.RegisterMap`) turns into: the
+"""What a register and memory map (:class:`kfgen.hdl.engine.regmap.RegisterMap`) turns into: the
 manifest's ``bus``, ``registers`` and ``memories``, a SystemRDL description, and from that,
 through PeakRDL, a C header and a Markdown document.
 
 Memories are SystemRDL ``external mem`` blocks (``memwidth`` 32, or 64 for elements of two
 bus words, low word first): PeakRDL-markdown gives each its own section (address, size, the
-description with shape, order and format) without unrolling thousands of words, and
+description with role, layout, shape, order and format) without unrolling thousands of words, and
 PeakRDL-cheader gives the register field macros (``TOP__REG__FIELD_bm`` / ``_bp`` / ``_bw`` /
 ``_reset``) and a ``TOP_t`` struct with the regions as arrays. PeakRDL-cheader writes no
 offsets, shapes or enumerated values as macros, so the header ends with a block of them from
 the same map: ``TOP__NAME_OFFSET`` for every register and region, ``TOP__REGION_ROWS`` /
 ``_COLS`` / ``_SIZE`` and ``TOP__REGION_ADDR(row, col)`` (byte offset of an element from the
-core's base), ``TOP__ELEMENT_SIZE`` and ``TOP__REG__FIELD__VALUE`` for named field values.
+core's base), each region's under a comment with its role, description and layout,
+``TOP__ELEMENT_SIZE`` and ``TOP__REG__FIELD__VALUE`` for named field values.
 
 Every text is deterministic: no dates, no paths (the exporters run in a temporary directory
 and only the file's base name, ``TOP.h``, reaches the header guard).
@@ -20,6 +21,8 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
+
+from kfgen.hdl.engine.regmap import REGION_ROLES
 
 from . import __version__
 
@@ -46,7 +49,9 @@ def map_manifest(regmap) -> dict:
 
     Beyond the issue's keys: a register's ``width`` in bits (ID is 64: two bus words, low
     first), a field's ``reset`` (for ID's fields the configuration it reports), a memory's
-    ``words_per_element``. ``values`` maps a field's named values to their codes.
+    ``words_per_element``. ``values`` maps a field's named values to their codes. A memory's
+    ``description``, ``role`` (one of ``memory_roles``, which says what each means) and
+    ``layout`` (what its rows and columns hold) are its declaration's.
     """
     return {
         "bus": {"protocol": "AXI4", "prefix": "s_axi", "data_width": regmap.data_width,
@@ -60,8 +65,10 @@ def map_manifest(regmap) -> dict:
             for r in regmap.registers],
         "memories": [
             {"name": m.name, "offset": m.offset, "shape": [m.rows, m.cols], "order": m.order,
-             "format": m.format, "access": m.access, "words_per_element": m.words}
+             "format": m.format, "access": m.access, "words_per_element": m.words,
+             "description": m.desc, "role": m.role, "layout": m.layout}
             for m in regmap.memories],
+        "memory_roles": dict(REGION_ROLES),
     }
 
 
@@ -77,12 +84,23 @@ def _memory_desc(m) -> str:
             f"(i * {m.cols} + j) * {size}")
     if m.words == 2:
         what += ", two bus words, low half first"
-    return f"{m.desc}. {what}."
+    return f"{m.desc}. {_role_text(m)}. Layout: {m.layout}. {what}."
+
+
+def _role_text(m) -> str:
+    return f"Role: {m.role} ({REGION_ROLES[m.role]})"
+
+
+#: The burst types the slave carries out (:mod:`kfgen.hdl.bus.axi4`); the others answer SLVERR.
+BURSTS = ("FIXED", "INCR")
 
 
 def _top_desc(regmap) -> str:
     return (f"AXI4 slave s_axi: {regmap.data_width}-bit data, {regmap.address_width}-bit byte addresses "
-            f"({regmap.size:#x} bytes), ID width {regmap.id_width}, INCR bursts and single beats. "
+            f"({regmap.size:#x} bytes), ID width {regmap.id_width}, " + " and ".join(BURSTS) + " bursts of 1 to 256 "
+            "beats of 4 bytes (a single beat is a burst of one; FIXED repeats its address); any other burst "
+            "type or beat size answers SLVERR on every beat and touches nothing, as does an INCR burst that "
+            "would cross a 4 KB boundary. "
             f"Registers from 0x0, the buffer from {regmap.buffer_base:#x}. "
             "An address outside every register and memory answers SLVERR and reads 0. "
             "A write to a read-only register or memory answers SLVERR and changes nothing. "
@@ -153,9 +171,12 @@ def _macros(regmap, top: str) -> str:
         for f in r.fields:
             lines += [f"#define {T}__{r.name.upper()}__{f.name.upper()}__{v.name.upper()} {v.value}u"
                       for v in f.values]
+    lines += ["", "// The buffer's regions, each with its role:"]
+    lines += [f"//   {k:<7} {v}" for k, v in REGION_ROLES.items()]
     for m in regmap.memories:
         N = f"{T}__{m.name.upper()}"
-        lines += [f"#define {N}_OFFSET {m.offset:#x}u",
+        lines += ["", f"// {m.name} ({m.role}): {m.desc}.", f"// Layout: {m.layout}.",
+                  f"#define {N}_OFFSET {m.offset:#x}u",
                   f"#define {N}_ROWS {m.rows}u",
                   f"#define {N}_COLS {m.cols}u",
                   f"#define {N}_SIZE {m.size:#x}u",

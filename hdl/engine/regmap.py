@@ -58,13 +58,21 @@ from typing import NamedTuple
 from ..describe import ParamError
 
 __all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "place_map", "status_registers",
-           "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS"]
+           "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS",
+           "REGION_ROLES"]
 
 BUS_DATA_WIDTH = 32
 #: AXI ID width of the slave (AWID/BID, ARID/RID); transactions complete in order.
 BUS_ID_WIDTH = 4
 FIELD_ACCESS = ("ro", "rw", "w1c", "w1p")
 BLOCK_ACCESS = ("ro", "rw")
+#: What a buffer region is for (a memory's ``role``), and what each role means.
+REGION_ROLES = {
+    "input": "software writes it, the core only reads it",
+    "state": "software writes the initial value; the core reads it and overwrites it in place, a step or "
+             "iteration at a time",
+    "output": "the core writes it and software reads it; the core never reads what was there before",
+}
 
 _WORD = BUS_DATA_WIDTH // 8
 
@@ -165,10 +173,14 @@ class Memory:
     access: str
     desc: str
     order: str = "row-major"
+    role: str = ""     # one of REGION_ROLES ("" undeclared)
+    layout: str = ""   # what a row and a column hold, how models or points are stacked
 
     def __post_init__(self):
         if self.access not in BLOCK_ACCESS:
             raise ValueError(f"memory {self.name}: access must be one of {BLOCK_ACCESS}, not {self.access!r}")
+        if self.role and self.role not in REGION_ROLES:
+            raise ValueError(f"memory {self.name}: role must be one of {tuple(REGION_ROLES)}, not {self.role!r}")
         if self.words not in (1, 2) or self.offset % _WORD:
             raise ValueError(f"memory {self.name}: {self.words} words per element at {self.offset:#x}")
 
@@ -280,7 +292,7 @@ def status_registers(events, what: str, irq: bool) -> list[Register]:
 
 def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
     """The map of ``registers`` (from 0x0) and a buffer of ``regions`` ((name, rows, cols,
-    access, desc), one after another in the engine's order) of ``fmt`` elements, at the
+    access, role, desc, layout), one after another in the engine's order) of ``fmt`` elements, at the
     smallest power of two above the registers and at least the buffer's size.
 
     Raises
@@ -289,7 +301,7 @@ def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
         ``address_width`` when ``address_width`` is too narrow for the map.
     """
     words = 1 if fmt.width <= BUS_DATA_WIDTH else 2
-    elements = sum(rows * cols for _, rows, cols, _, _ in regions)
+    elements = sum(rows * cols for _, rows, cols, *_ in regions)
     need = max(elements * words * _WORD, registers[-1].end)
     base = 1 << (need - 1).bit_length()
     width = base.bit_length()  # registers in [0, base), buffer in [base, 2 base)
@@ -298,8 +310,8 @@ def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:
                                           f"{elements * words * _WORD}-byte buffer at {base:#x}), not "
                                           f"{address_width}")
     memories, offset = [], base
-    for name, rows, cols, access, desc in regions:
-        mem = Memory(name, offset, (rows, cols), fmt.name, words, access, desc)
+    for name, rows, cols, access, role, desc, layout in regions:
+        mem = Memory(name, offset, (rows, cols), fmt.name, words, access, desc, role=role, layout=layout)
         memories.append(mem)
         offset = mem.end
     return RegisterMap(registers, tuple(memories), address_width or width, base)

@@ -6,6 +6,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
+from .regmap import CYCLES
 
 __all__ = ["CORE"]
 
@@ -36,6 +37,7 @@ def _extra(params, core) -> dict:
     mc = sched.machine
     return {
         **engine_manifest(core),
+        "cycles_keys": dict(CYCLES),
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),
                    "chain": chain_bound(sched.program, mc)},

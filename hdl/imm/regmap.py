@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from ..engine.regmap import Field, Register, RegisterMap, place_map, status_registers
 
-__all__ = ["imm_map", "CORE_ID", "MAP_VERSION"]
+__all__ = ["imm_map", "regions", "CORE_ID", "MAP_VERSION", "CYCLES"]
 
 #: ID.core of the IMM (ASCII 'I').
 CORE_ID = 0x49
@@ -55,25 +55,46 @@ def _registers(params) -> tuple[Register, ...]:
     return tuple(regs)
 
 
-def regions(params) -> tuple[tuple[str, int, int, str, str], ...]:
-    """(name, rows, cols, access, desc) in buffer order: the engine's (programs)."""
+def regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
+    """(name, rows, cols, access, role, desc, layout) in buffer order: the engine's (programs);
+    role one of :data:`kfgen.hdl.engine.regmap.REGION_ROLES`."""
     R, n, d = params.R, params.n, params.d
+
+    def stacked(rows, cols):
+        sizes = ", ".join(f"{k} = {v}" for k, v in (("R", R), ("n", n), ("d", d)) if k in ("R", rows, cols))
+        return (f"R models stacked by rows: model r's {rows} x {cols} matrix, row-major, in rows r {rows} .. "
+                f"r {rows} + {rows} - 1 ({sizes})")
+
     return (
-        ("pi", R, R, "rw", "transition matrix: pi[i][j] the probability of a switch from model i to model j "
-                           "(rows sum to 1)"),
-        ("mu", R, 1, "rw", "model probabilities mu; after an iteration the updated ones"),
-        ("F", R * n, n, "rw", "state transition F of each model, stacked: model r in rows r n .. r n + n - 1"),
-        ("Q", R * n, n, "rw", "process-noise covariance Q of each model, stacked as F"),
-        ("H", R * d, n, "rw", "measurement matrix H of each model, stacked: model r in rows r d .. r d + d - 1"),
-        ("R", R * d, d, "rw", "measurement-noise covariance R of each model, stacked as H"),
-        ("x_model", R, n, "rw", "each model's state estimate, model r in row r; after an iteration the "
-                                "updated ones"),
-        ("P_model", R * n, n, "rw", "each model's covariance, full, stacked as F; after an iteration the "
-                                    "updated ones (exactly symmetric)"),
-        ("z", d, 1, "rw", "measurement z of this iteration"),
-        ("x", n, 1, "ro", "combined state estimate (written by the iteration)"),
-        ("P", n, n, "ro", "combined covariance, full (written by the iteration, exactly symmetric)"),
+        ("pi", R, R, "rw", "input", "transition matrix: element (i, j) the probability of a switch from model i to "
+                                    "model j (rows sum to 1)",
+         f"R x R, row-major: row i from model i, column j to model j (R = {R})"),
+        ("mu", R, 1, "rw", "state", "model probabilities mu; after an iteration the updated ones",
+         f"a column: model r's probability in row r (R = {R})"),
+        ("F", R * n, n, "rw", "input", "state transition F of each model", stacked("n", "n")),
+        ("Q", R * n, n, "rw", "input", "process-noise covariance Q of each model",
+         stacked("n", "n")),
+        ("H", R * d, n, "rw", "input", "measurement matrix H of each model", stacked("d", "n")),
+        ("R", R * d, d, "rw", "input", "measurement-noise covariance R of each model",
+         stacked("d", "d")),
+        ("x_model", R, n, "rw", "state", "each model's state estimate; after an iteration the updated ones",
+         f"R rows of n elements: model r's state in row r (R = {R}, n = {n})"),
+        ("P_model", R * n, n, "rw", "state", "each model's covariance, full; after an iteration the updated ones "
+                                             "(exactly symmetric)", stacked("n", "n")),
+        ("z", d, 1, "rw", "input", "measurement z of this iteration",
+         f"a column: element i in row i (d = {d})"),
+        ("x", n, 1, "ro", "output", "combined state estimate (written by the iteration)",
+         f"a column: element i in row i (n = {n})"),
+        ("P", n, n, "ro", "output", "combined covariance, full (written by the iteration, exactly symmetric)",
+         f"n x n, row-major, both triangles (n = {n})"),
     )
+
+
+#: The manifest's ``cycles`` keys.
+CYCLES = {
+    "iterate": "one IMM iteration (CTRL.start): mixing, the R Kalman filters and the combination, "
+               "mu, x_model and P_model updated in place, x and P written",
+}
 
 
 def imm_map(params) -> RegisterMap:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..describe import CoreDescriptor, Doc
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from .params import SIZE_MAX, UkfParams
+from .regmap import STEPS
 
 __all__ = ["CORE"]
 
@@ -36,6 +37,8 @@ def _build(params):
 def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
+        "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
+                        for v in STEPS},
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
     }

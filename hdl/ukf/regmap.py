@@ -7,18 +7,33 @@ power of two, regions in the engine's order with no gaps)::
 
 ``sigma_points`` holds N points of M words, point by point, as an N x M matrix; it is the
 one read-only region.
+
+Regions
+-------
+Each region is declared with its description, its ``role`` (:data:`REGION_ROLES`: ``input``
+software writes and the core only reads, ``state`` the core reads and overwrites in place,
+``output`` the core writes) and its ``layout`` (what its rows and columns hold); the manifest,
+the C header and the Markdown document all print them from the declaration.
 """
 
 from __future__ import annotations
 
 from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
 
-__all__ = ["ukf_map", "CORE_ID", "MAP_VERSION"]
+__all__ = ["ukf_map", "CORE_ID", "MAP_VERSION", "STEPS"]
 
 #: ID.core of the UKF (ASCII 'U').
 CORE_ID = 0x55
 #: ID.version: raised whenever an offset, field or meaning in this map changes.
 MAP_VERSION = 1
+
+
+#: The steps CTRL.step names, and the manifest's ``cycles`` keys.
+STEPS = (
+    Value("sig_gen", 0, "sigma points of (x, P, Q, R) into sigma_points (eqs. 3-8, 21-24)"),
+    Value("predict", 1, "x, P <- mean and covariance of sigma_points_f (eqs. 10-11)"),
+    Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
+)
 
 
 def _registers(params) -> tuple[Register, ...]:
@@ -49,30 +64,37 @@ def _registers(params) -> tuple[Register, ...]:
                                         "while busy (STATUS.err_busy)"),
             Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running step stops, the core is idle, "
                                         "STATUS is cleared; the buffer is kept"),
-            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)", values=(
-                Value("sig_gen", 0, "sigma points of (x, P, Q, R) into sigma_points (eqs. 3-8, 21-24)"),
-                Value("predict", 1, "x, P <- mean and covariance of sigma_points_f (eqs. 10-11)"),
-                Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
-            )),
+            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)",
+                  values=STEPS),
         )),
         *status_registers(events, "step", params.irq),
     ]
     return tuple(regs)
 
 
-def _regions(params) -> tuple[tuple[str, int, int, str, str], ...]:
-    """(name, rows, cols, access, desc) in buffer order: the engine's order (programs)."""
+def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
+    """(name, rows, cols, access, role, desc, layout) in buffer order: the engine's order
+    (programs); role one of REGION_ROLES."""
     n, m, nw, nv, M, N = params.n, params.m, params.nw, params.nv, params.M, params.N
+    column = "a column: element i in row i"
     return (
-        ("x", n, 1, "rw", "state estimate x; after predict x^-, after update x^+"),
-        ("P", n, n, "rw", "state covariance P, full; after predict P^-, after update P^+"),
-        ("Q", nw, nw, "rw", "process-noise covariance Q, full"),
-        ("R", nv, nv, "rw", "measurement-noise covariance R, full"),
-        ("sigma_points", N, M, "ro", "sigma points chi_i of x^a = [x; w; v], point by point (written by "
-                                     "sig_gen, eq. 8)"),
-        ("sigma_points_f", N, n, "rw", "f(chi_i), point by point (written by software after sig_gen)"),
-        ("sigma_points_h", N, m, "rw", "h(chi_i^-), point by point (written by software after predict)"),
-        ("z", m, 1, "rw", "measurement z"),
+        ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
+         f"{column} (n = {n})"),
+        ("P", n, n, "rw", "state", "state covariance P, full; after predict P^-, after update P^+",
+         f"n x n, row-major, both triangles (n = {n})"),
+        ("Q", nw, nw, "rw", "input", "process-noise covariance Q, full",
+         f"nw x nw, row-major, both triangles (nw = {nw})"),
+        ("R", nv, nv, "rw", "input", "measurement-noise covariance R, full",
+         f"nv x nv, row-major, both triangles (nv = {nv})"),
+        ("sigma_points", N, M, "ro", "output", "sigma points chi_i of x^a = [x; w; v], point by point "
+                                               "(written by sig_gen, eq. 8)",
+         f"N points of M elements, point i in row i: columns 0 .. n - 1 its x, then nw of w, then nv of v "
+         f"(N = {N}, M = {M}, n = {n}, nw = {nw}, nv = {nv})"),
+        ("sigma_points_f", N, n, "rw", "input", "f(chi_i), point by point (written by software after sig_gen)",
+         f"N points of n elements, f(chi_i) in row i (N = {N}, n = {n})"),
+        ("sigma_points_h", N, m, "rw", "input", "h(chi_i^-), point by point (written by software after predict)",
+         f"N points of m elements, h(chi_i^-) in row i (N = {N}, m = {m})"),
+        ("z", m, 1, "rw", "input", "measurement z", f"{column} (m = {m})"),
     )
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from kfgen.gen.regdoc import documents, map_manifest
 from kfgen.hdl.describe import ParamError
-from kfgen.hdl.engine.regmap import Field, Memory, Register
+from kfgen.hdl.engine.regmap import REGION_ROLES, Field, Memory, Register
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.programs import build_ukf
 from kfgen.hdl.ukf.regmap import ukf_map
@@ -185,6 +185,8 @@ def test_declarations_that_cannot_be_decoded_are_refused():
         Field("a", 0, 2, "rw", "", reset=4)
     with pytest.raises(ValueError, match="access"):
         Memory("m", 0, (1, 1), "binary32", 1, "w1c", "")
+    with pytest.raises(ValueError, match="role"):
+        Memory("m", 0, (1, 1), "binary32", 1, "rw", "", role="scratch")
 
 
 # ------------------------------------------------------------------------------ products
@@ -192,7 +194,8 @@ def test_declarations_that_cannot_be_decoded_are_refused():
 def test_manifest_entries(config):
     params, regmap = config
     data = json.loads(json.dumps(map_manifest(regmap)))
-    assert set(data) == {"bus", "registers", "memories"}
+    assert set(data) == {"bus", "registers", "memories", "memory_roles"}
+    assert data["memory_roles"] == REGION_ROLES and set(REGION_ROLES) == {"input", "state", "output"}
     bus = data["bus"]
     assert (bus["protocol"], bus["data_width"], bus["address_width"], bus["id_width"]) == \
         ("AXI4", 32, params.address_width, 4)
@@ -207,6 +210,7 @@ def test_manifest_entries(config):
         assert {"name", "offset", "shape", "order", "format", "access"} <= set(m)
         assert (m["name"], m["offset"], m["shape"], m["order"], m["format"], m["access"]) == \
             (mem.name, mem.offset, [mem.rows, mem.cols], "row-major", params.format, mem.access)
+        assert (m["description"], m["role"], m["layout"]) == (mem.desc, mem.role, mem.layout)
 
 
 @pytest.fixture(scope="module")
