@@ -16,8 +16,8 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError, check_name
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "check_div_sqrt",
-           "check_format", "check_bus"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "GEN_PES_MAX",
+           "GEN_CROSSBAR_MAX", "check_div_sqrt", "check_format", "check_bus", "check_generation"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
@@ -28,6 +28,13 @@ ADDRESS_WIDTH_MAX = 32
 
 #: The shared divider and square root: one result bit a cycle, or one operation a cycle.
 DIV_SQRT = ("iterative", "pipelined")
+
+#: Generation limits of an engine core (P processing elements, B operand banks): Amaranth's
+#: netlist, its RTLIL and Yosys grow with the P x B crossbar between lanes and banks and with
+#: the P-lane microcode word; above these, ``kfgen`` needs more than 60 s or 2 GB on a
+#: two-core machine (docs/benchmarks.md; ``python -m kfgen.gen.bench_gen`` measures them).
+GEN_PES_MAX = 20
+GEN_CROSSBAR_MAX = 160
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
@@ -42,6 +49,24 @@ def check_div_sqrt(value, pes: int) -> str:
     if kind not in DIV_SQRT:
         raise ParamError("div_sqrt", f"must be {' or '.join(DIV_SQRT)}, not {value!r}")
     return kind
+
+
+def check_generation(pes: int, banks: int, default_banks) -> None:
+    """Refuse, before any build, an engine core that would not generate in 60 s and 2 GB: at
+    most :data:`GEN_PES_MAX` PEs and a crossbar of at most :data:`GEN_CROSSBAR_MAX` lanes times
+    banks. ``default_banks(P)`` is the core's default bank count, for the message."""
+    why = "generation above that needs more than 60 s or 2 GB; see docs/benchmarks.md"
+    if pes > GEN_PES_MAX:
+        raise ParamError("pes", f"at most {GEN_PES_MAX}, not {pes} ({why})")
+    if pes * banks > GEN_CROSSBAR_MAX:
+        top = max(p for p in range(1, GEN_PES_MAX + 1) if p * default_banks(p) <= GEN_CROSSBAR_MAX)
+        raise ParamError("pes", f"P = {pes} with {banks} banks is a {pes} x {banks} crossbar; P x banks must be at "
+                                f"most {GEN_CROSSBAR_MAX} (P <= {top} with the default banks; {why})")
+
+
+def default_banks(pes: int) -> int:
+    """The UKF's default bank count: 2P up to P = 2, P from 3 to 8, 8 above."""
+    return 2 * pes if pes <= 2 else min(pes, 8)
 
 
 def check_format(value) -> str:
@@ -135,10 +160,11 @@ class UkfParams:
         object.__setattr__(self, "div_sqrt", check_div_sqrt(self.div_sqrt, self.pes))
         banks = self.banks
         if banks is None:
-            banks = 2 * self.pes if self.pes <= 2 else min(self.pes, 8)
+            banks = default_banks(self.pes)
         elif isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * M:
             raise ParamError("banks", f"must be an integer in 2..2M = {2 * M}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
+        check_generation(self.pes, banks, default_banks)
         object.__setattr__(self, "format", check_format(self.format))
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:
