@@ -287,6 +287,8 @@ def _parser():
                     help="of those, the ones whose whole system is co-simulated (default 1,2)")
     ap.add_argument("--no-sim", action="store_true", help="skip the simulations (no measured cycles, no system)")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
+    ap.add_argument("--no-gen", action="store_true",
+                    help="skip the table of generation time and memory against P (kfgen.gen.bench_gen)")
     ap.add_argument("--no-fmax", "--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--freq", type=float, default=100.0,
                     help="nextpnr target frequency in MHz (default 100, the chapter's clock)")
@@ -373,6 +375,11 @@ def main(argv=None) -> int:
         print(f"bench_ukf: {exc}", file=sys.stderr)
         return 1
     report = render(rows, bound, engine, args, seconds)
+    gen_ok = True
+    if not args.no_gen:
+        from .bench_gen import ROWS, table
+        gen_report, gen_ok = table({"ukf": ROWS["ukf"]})
+        report += "\n" + gen_report
     print(report, end="")
     (out / "bench_ukf.md").write_text(report)
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "bounds": bound, "engine": engine,
@@ -380,7 +387,7 @@ def main(argv=None) -> int:
                                         + "\n")
     failed = any(r.get(k) for r in rows for k in ("sim_error", "xilinx_error", "ecp5_error")) \
         or any("error" in res for r in rows for res in r.get("system", {}).values())
-    return 1 if failed or (not args.no_sim and any("measured" not in r for r in rows)) else 0
+    return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in rows)) else 0
 
 
 if __name__ == "__main__":
