@@ -25,7 +25,7 @@ LIMIT_MB = 2048
 
 #: (core, extra arguments, P values): the defaults' sizes, P up to the largest accepted.
 ROWS = {
-    "ukf": ([], (1, 2, 4, 8, 16, 20)),
+    "ukf": ([], (1, 2, 4, 8, 16)),
     "imm": ([], (1, 2, 4, 8)),
 }
 

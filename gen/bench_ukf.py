@@ -35,7 +35,7 @@ from pathlib import Path
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import Machine, chain_bound
 from kfgen.hdl.ukf.descriptor import CORE
-from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.params import GEN_PES_MAX, UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
 
@@ -271,9 +271,9 @@ def _pe_list(text: str) -> list[int]:
         pes = [int(t) for t in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected P values separated by commas, like 1,2, not {text!r}")
-    M = UkfParams().M
-    if not pes or any(not 1 <= p <= M for p in pes):
-        raise argparse.ArgumentTypeError(f"every P must be in 1..{M}, not {text!r}")
+    top = min(UkfParams().M, GEN_PES_MAX)
+    if not pes or any(not 1 <= p <= top for p in pes):
+        raise argparse.ArgumentTypeError(f"every P must be in 1..{top}, not {text!r}")
     return sorted(set(pes))
 
 

@@ -33,8 +33,8 @@ DIV_SQRT = ("iterative", "pipelined")
 #: netlist, its RTLIL and Yosys grow with the P x B crossbar between lanes and banks and with
 #: the P-lane microcode word; above these, ``kfgen`` needs more than 60 s or 2 GB on a
 #: two-core machine (docs/benchmarks.md; ``python -m kfgen.gen.bench_gen`` measures them).
-GEN_PES_MAX = 20
-GEN_CROSSBAR_MAX = 160
+GEN_PES_MAX = 16
+GEN_CROSSBAR_MAX = 128
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))

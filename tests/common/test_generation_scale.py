@@ -16,9 +16,9 @@ from conftest import kfgen_in_process
 REFUSED = [
     (["imm", "--models", "2", "--pes", "64"], f"--pes: at most {GEN_PES_MAX}, not 64"),
     (["imm", "--pes", "9"], f"P x banks must be at most {GEN_CROSSBAR_MAX} (P <= 8 with the default banks"),
-    (["imm", "--pes", "4", "--banks", "41"], "4 x 41 crossbar"),
-    (["ukf", "--states", "30", "--pes", "21"], f"--pes: at most {GEN_PES_MAX}, not 21"),
-    (["ukf", "--pes", "20", "--banks", "9"], "20 x 9 crossbar"),
+    (["imm", "--pes", "4", "--banks", "33"], "4 x 33 crossbar"),
+    (["ukf", "--pes", "17"], f"--pes: at most {GEN_PES_MAX}, not 17"),
+    (["ukf", "--pes", "16", "--banks", "9"], "16 x 9 crossbar"),
 ]
 
 
@@ -44,16 +44,16 @@ def test_refused_at_once(tmp_path, monkeypatch, argv, says):
 
 
 def test_params_refuse_and_accept_at_the_limits():
-    with pytest.raises(ParamError, match="at most 20"):
+    with pytest.raises(ParamError, match="at most 16"):
         ImmParams(models=2, pes=64)
     with pytest.raises(ParamError, match="crossbar"):
         ImmParams(pes=9)
     with pytest.raises(ParamError, match="crossbar"):
-        UkfParams(pes=20, banks=9)
-    # the largest accepted: the products sit exactly on the limit
-    assert ImmParams(pes=8).banks * 8 <= GEN_CROSSBAR_MAX
-    assert ImmParams(pes=20, banks=8).banks == 8
-    assert UkfParams(pes=20).banks * 20 == GEN_CROSSBAR_MAX
+        UkfParams(pes=16, banks=9)
+    # the largest accepted: P x banks sits exactly on the limit
+    assert ImmParams(pes=8).banks * 8 == GEN_CROSSBAR_MAX
+    assert ImmParams(pes=16, banks=8).banks * 16 == GEN_CROSSBAR_MAX
+    assert UkfParams(pes=16).banks * 16 == GEN_CROSSBAR_MAX
 
 
 def test_bench_measures_a_refusal_as_a_subprocess(tmp_path):
@@ -63,9 +63,9 @@ def test_bench_measures_a_refusal_as_a_subprocess(tmp_path):
 
 # The largest accepted configurations: the defaults' sizes at the most PEs the limits let through.
 LARGEST = [
-    ["ukf", "--pes", "20"],
+    ["ukf", "--pes", "16"],
     ["imm", "--pes", "8"],
-    ["imm", "--pes", "20", "--banks", "8"],
+    ["imm", "--pes", "16", "--banks", "8"],
 ]
 
 
