@@ -129,6 +129,8 @@ def _parser():
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_imm", description=__doc__.split("\n\n")[0])
     ap.add_argument("--no-sim", action="store_true", help="skip the Verilator runs")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
+    ap.add_argument("--no-gen", action="store_true",
+                    help="skip the table of generation time and memory against P (kfgen.gen.bench_gen)")
     ap.add_argument("--no-fmax", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--synth-pes", type=int, nargs="+", default=[1, 2, 4],
                     help="P of the R = 5 cores synthesised for Xilinx (default 1 2 4)")
@@ -174,12 +176,17 @@ def main(argv=None) -> int:
         print(f"bench_imm: {exc}", file=sys.stderr)
         return 1
     report = render(rows, args, seconds)
+    gen_ok = True
+    if not args.no_gen:
+        from .bench_gen import ROWS, table
+        gen_report, gen_ok = table({"imm": ROWS["imm"]})
+        report += "\n" + gen_report
     print(report, end="")
     (out / "bench_imm.md").write_text(report)
     (out / "bench_imm.json").write_text(json.dumps({"rows": rows, "seconds": seconds}, indent=2, sort_keys=True,
                                                    default=str) + "\n")
     failed = any(r.get(k) for r in rows for k in ("sim_error", "xilinx_error", "ecp5_error"))
-    return 1 if failed or (not args.no_sim and any("measured" not in r for r in big)) else 0
+    return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in big)) else 0
 
 
 if __name__ == "__main__":

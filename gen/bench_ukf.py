@@ -35,6 +35,7 @@ from pathlib import Path
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import Machine, chain_bound
 from kfgen.hdl.ukf.descriptor import CORE
+from kfgen.hdl.engine.params import GEN_PES_MAX
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
@@ -271,9 +272,9 @@ def _pe_list(text: str) -> list[int]:
         pes = [int(t) for t in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected P values separated by commas, like 1,2, not {text!r}")
-    M = UkfParams().M
-    if not pes or any(not 1 <= p <= M for p in pes):
-        raise argparse.ArgumentTypeError(f"every P must be in 1..{M}, not {text!r}")
+    top = min(UkfParams().M, GEN_PES_MAX)
+    if not pes or any(not 1 <= p <= top for p in pes):
+        raise argparse.ArgumentTypeError(f"every P must be in 1..{top}, not {text!r}")
     return sorted(set(pes))
 
 
@@ -287,6 +288,8 @@ def _parser():
                     help="of those, the ones whose whole system is co-simulated (default 1,2)")
     ap.add_argument("--no-sim", action="store_true", help="skip the simulations (no measured cycles, no system)")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
+    ap.add_argument("--no-gen", action="store_true",
+                    help="skip the table of generation time and memory against P (kfgen.gen.bench_gen)")
     ap.add_argument("--no-fmax", "--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--freq", type=float, default=100.0,
                     help="nextpnr target frequency in MHz (default 100, the chapter's clock)")
@@ -373,6 +376,11 @@ def main(argv=None) -> int:
         print(f"bench_ukf: {exc}", file=sys.stderr)
         return 1
     report = render(rows, bound, engine, args, seconds)
+    gen_ok = True
+    if not args.no_gen:
+        from .bench_gen import ROWS, table
+        gen_report, gen_ok = table({"ukf": ROWS["ukf"]})
+        report += "\n" + gen_report
     print(report, end="")
     (out / "bench_ukf.md").write_text(report)
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "bounds": bound, "engine": engine,
@@ -380,7 +388,7 @@ def main(argv=None) -> int:
                                         + "\n")
     failed = any(r.get(k) for r in rows for k in ("sim_error", "xilinx_error", "ecp5_error")) \
         or any("error" in res for r in rows for res in r.get("system", {}).values())
-    return 1 if failed or (not args.no_sim and any("measured" not in r for r in rows)) else 0
+    return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in rows)) else 0
 
 
 if __name__ == "__main__":

@@ -10,7 +10,8 @@ from __future__ import annotations
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError, check_name
 
-__all__ = ["FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "check_div_sqrt", "check_format", "check_bus"]
+__all__ = ["FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "GEN_PES_MAX", "GEN_CROSSBAR_MAX",
+           "check_div_sqrt", "check_format", "check_bus", "check_generation"]
 
 #: Widest float format: one element is at most two 32-bit bus words.
 FORMAT_WIDTH_MAX = 64
@@ -19,6 +20,26 @@ ADDRESS_WIDTH_MAX = 32
 
 #: The shared divider and square root: one result bit a cycle, or one operation a cycle.
 DIV_SQRT = ("iterative", "pipelined")
+
+#: Generation limits of an engine core (P processing elements, B operand banks): Amaranth's
+#: netlist, its RTLIL and Yosys grow with the P x B crossbar between lanes and banks and with
+#: the P-lane microcode word; above these, ``kfgen`` needs more than 60 s or 2 GB on a
+#: two-core machine (docs/benchmarks.md; ``python -m kfgen.gen.bench_gen`` measures them).
+GEN_PES_MAX = 16
+GEN_CROSSBAR_MAX = 128
+
+
+def check_generation(pes: int, banks: int, default_banks) -> None:
+    """Refuse, before any build, an engine core that would not generate in 60 s and 2 GB: at
+    most :data:`GEN_PES_MAX` PEs and a crossbar of at most :data:`GEN_CROSSBAR_MAX` lanes times
+    banks. ``default_banks(P)`` is the core's default bank count, for the message."""
+    why = "generation above that needs more than 60 s or 2 GB; see docs/benchmarks.md"
+    if pes > GEN_PES_MAX:
+        raise ParamError("pes", f"at most {GEN_PES_MAX}, not {pes} ({why})")
+    if pes * banks > GEN_CROSSBAR_MAX:
+        top = max(p for p in range(1, GEN_PES_MAX + 1) if p * default_banks(p) <= GEN_CROSSBAR_MAX)
+        raise ParamError("pes", f"P = {pes} with {banks} banks is a {pes} x {banks} crossbar; P x banks must be at "
+                                f"most {GEN_CROSSBAR_MAX} (P <= {top} with the default banks; {why})")
 
 
 def check_div_sqrt(value, pes: int) -> str:

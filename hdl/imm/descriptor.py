@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
+from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
@@ -18,7 +19,9 @@ def _docs() -> dict[str, Doc]:
         "states": Doc("states n of every model", "", f"an integer in 1..{STATES_MAX}"),
         "measurements": Doc("measurements d: the length of z (S^-1 by Schur complements)", "",
                             f"an integer in 1..{D_MAX}"),
-        "pes": Doc("processing elements P (FMAs working in parallel)", "", f"an integer in 1..{PES_MAX}"),
+        "pes": Doc("processing elements P (FMAs working in parallel)", "",
+                   f"an integer in 1..{GEN_PES_MAX} with P x banks <= {GEN_CROSSBAR_MAX} (P <= 8 with the "
+                   "default banks): the most that generates in 60 s and 2 GB"),
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
                         "their area) or pipelined (one operation a cycle); by default iterative at P = 1, "
                         "pipelined above", "", "iterative or pipelined (any case)"),

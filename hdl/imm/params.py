@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
-from ..engine.params import check_bus, check_div_sqrt, check_format
+from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 
@@ -75,6 +75,7 @@ class ImmParams:
         if isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * PES_MAX:
             raise ParamError("banks", f"must be an integer in 2..{2 * PES_MAX}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
+        check_generation(self.pes, banks, lambda p: 2 * p)
         object.__setattr__(self, "format", check_format(self.format))
         check_bus(self)
         from .regmap import imm_map  # checks that the map fits, and gives the width it needs

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
+from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from .params import SIZE_MAX, UkfParams
 from .regmap import STEPS
@@ -17,7 +18,9 @@ def _docs() -> dict[str, Doc]:
         "observations": Doc("observations m: the length of z", "", size),
         "process_noise": Doc("process-noise terms nw: Q is nw x nw, and f takes them with x", "", size),
         "measurement_noise": Doc("measurement-noise terms nv: R is nv x nv, and h takes them", "", size),
-        "pes": Doc("processing elements P (FMAs working in parallel)", "", "an integer in 1..M, M = n + nw + nv"),
+        "pes": Doc("processing elements P (FMAs working in parallel)", "", "an integer in 1..M, M = n + nw + nv, "
+                   f"at most {GEN_PES_MAX} with P x banks <= {GEN_CROSSBAR_MAX} (the most that "
+                   "generates in 60 s and 2 GB)"),
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
                         "their area; sig_gen takes longer) or pipelined (one operation a cycle); by default "
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),

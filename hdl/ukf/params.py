@@ -15,15 +15,20 @@ from dataclasses import dataclass, fields
 
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError
-from ..engine.params import check_bus, check_div_sqrt, check_format
+from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation
 
-__all__ = ["UkfParams", "SIZE_MAX"]
+__all__ = ["UkfParams", "SIZE_MAX", "default_banks"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
+
+
+def default_banks(pes: int) -> int:
+    """The UKF's default bank count: 2P up to P = 2, P from 3 to 8, 8 above."""
+    return 2 * pes if pes <= 2 else min(pes, 8)
 
 
 @dataclass(frozen=True)
@@ -94,10 +99,11 @@ class UkfParams:
         object.__setattr__(self, "div_sqrt", check_div_sqrt(self.div_sqrt, self.pes))
         banks = self.banks
         if banks is None:
-            banks = 2 * self.pes if self.pes <= 2 else min(self.pes, 8)
+            banks = default_banks(self.pes)
         elif isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 2 * M:
             raise ParamError("banks", f"must be an integer in 2..2M = {2 * M}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
+        check_generation(self.pes, banks, default_banks)
         object.__setattr__(self, "format", check_format(self.format))
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:
