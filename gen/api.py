@@ -28,6 +28,7 @@ from kfgen.hdl.describe import CoreDescriptor, ParamError
 
 from .cores import discover
 from .fusesoc import FlowOptions
+from .output import generate, write_files
 
 __all__ = ["GeneratedCore", "generate_core", "component", "cores", "FlowOptions", "ParamError"]
 
@@ -81,7 +82,6 @@ class GeneratedCore:
 
     def write(self, directory) -> list[Path]:
         """Write every file into ``directory`` (created if missing), all or nothing; the paths."""
-        from .cli import write_files
         return write_files(directory, self.files)
 
 
@@ -104,8 +104,6 @@ def generate_core(core: str, params=None, /, *, flow: FlowOptions | None = None,
     ParamError
         An unknown core or a bad parameter (``.param`` names it, ``.message`` says what is allowed).
     """
-    from .cli import generate
-
     desc = _core(core)
     chosen = _params(desc, params, parameters)
     return GeneratedCore(desc.name, chosen, generate(desc, chosen, flow))
