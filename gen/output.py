@@ -85,6 +85,10 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
     check_name_fits(top)
     component = core.build(params)
     if top in port_names(component):
+        # Elaborated (milliseconds to a second, against the seconds of emission) so that
+        # Amaranth does not warn of a component created and never used.
+        from amaranth.hdl import Fragment
+        Fragment.get(component, None)
         raise ParamError("name", f"{top!r} is also a port name of the {core.name} core; choose another module name")
     parameters = dataclasses.asdict(params)
     head = header(core.name, top, parameters, command(core, params))
