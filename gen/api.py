@@ -10,8 +10,9 @@
 Parameters are the keyword arguments of the core's parameter dataclass (the command line's
 options with ``_`` for ``-``: ``sigma_r=50.0``), or an instance of it; a bad value raises
 :class:`~kfgen.hdl.describe.ParamError` (a ``ValueError``) naming the parameter and what is
-allowed. The command line is a layer over this module: it turns its options (or a TOML file)
-into the same parameters and writes :attr:`GeneratedCore.files`.
+allowed. This module and the command line both sit on :mod:`kfgen.gen.output`, which makes
+the files and writes them: the command line turns its options (or a TOML file) into the same
+parameters and writes the same files.
 
 :func:`component` gives the Amaranth ``wiring.Component`` itself, for a design of one's own
 that instantiates it (``m.submodules.trk = component("castella", tracks=8)``).

@@ -24,6 +24,7 @@ import dataclasses
 import os
 import re
 import sys
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -136,12 +137,13 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
             core.name, help=core.summary, description=f"{core.name}: {core.summary}.", allow_abbrev=False,
             formatter_class=argparse.RawDescriptionHelpFormatter,
             epilog=values_from + " the leading dashes; - and _ are interchangeable), then the command line.\n"
-                   "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), the\n"
-                   "core's documents (register map TOP.rdl, C header TOP.h, TOP.md, C driver TOP_driver.h and\n"
-                   "TOP_driver.c, where it has them), and for vendor flows the FuseSoC core DIR/TOP.core, its smoke\n"
-                   "testbench DIR/TOP_tb.v and the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc\n"
-                   f"(Quartus); TOP is --name (at most {NAME_MAX} characters)."
-                   + (f"\nThis core writes: {_writes(core)}." if resolved is not None else ""))
+                   + textwrap.fill(
+                       "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), the "
+                       "core's documents (register map TOP.rdl, C header TOP.h, TOP.md, C driver TOP_driver.h and "
+                       "TOP_driver.c, where it has them), and for vendor flows the FuseSoC core DIR/TOP.core, its "
+                       "smoke testbench DIR/TOP_tb.v and the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc "
+                       f"(Quartus); TOP is --name (at most {NAME_MAX} characters)."
+                       + (f" This core writes: {_writes(core)}." if resolved is not None else ""), 95, break_on_hyphens=False, break_long_words=False))
         g = p.add_argument_group("parameters")
         for field in defaults:
             if _switch(defaults[field]):
