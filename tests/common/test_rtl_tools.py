@@ -55,6 +55,9 @@ def test_kfgen_lint_reports_warnings(tmp_path):
     (tmp_path / "sloppy.vlt").write_text(waivers(text, "sloppy", ["test"]))
     proc = kfgen("lint", tmp_path, check=False)
     assert proc.returncode == 1 and "%Warning" in proc.stdout, proc.stdout
+    n = proc.stdout.count("  %Warning-")  # each warning Verilator printed, indented under the status
+    assert n >= 1
+    assert re.search(rf"sloppy\.v: {n} warnings? \(Verilator", proc.stdout), proc.stdout
     proc = kfgen("lint", tmp_path / "nothing", check=False)
     assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: lint:")
 
