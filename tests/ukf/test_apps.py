@@ -429,6 +429,15 @@ def test_cli_bad_app_exits_2(app_file, tmp_path, spec, says):
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
 
 
+@pytest.mark.parametrize("spec", ["nanosat:Nanosat", "tracker:Tracker"])
+def test_cli_short_app_names(tmp_path, spec):
+    """kfgen ukf --app takes the shipped applications' short names: the sizes come from them
+    (an out-of-range --pes is refused after --app loaded, so nothing is generated)."""
+    proc = kfgen_in_process("ukf", "--app", spec, "--pes", "999", "-o", tmp_path / "x")
+    assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --pes: "), proc.stderr
+    assert not (tmp_path / "x").exists()
+
+
 def test_cli_app_only_for_cores_that_take_one(tmp_path):
     proc = kfgen("castella", "--app", NANOSAT, "-o", tmp_path / "x", check=False)
     assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --app: unknown option")
