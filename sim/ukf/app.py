@@ -184,7 +184,8 @@ def _positive_definite(what: str, a: np.ndarray) -> None:
     definite (numpy's Cholesky factorisation succeeds)."""
     if np.max(np.abs(a - a.T)) > 1e-9 * np.max(np.abs(a)):
         i, j = (int(k) for k in np.unravel_index(np.argmax(np.abs(a - a.T)), a.shape))
-        raise AppError(f"{what} must be symmetric, not {float(a[i, j])} at [{i}, {j}] and {float(a[j, i])} at [{j}, {i}]")
+        raise AppError(f"{what} must be symmetric, not {float(a[i, j])} at [{i}, {j}] "
+                       f"and {float(a[j, i])} at [{j}, {i}]")
     try:
         np.linalg.cholesky(a)
     except np.linalg.LinAlgError:
