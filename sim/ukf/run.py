@@ -139,8 +139,13 @@ def main(argv=None) -> int:
     from .app import AppError, checked_scenario, load_app
     from .software import StepError
 
+    class Parser(argparse.ArgumentParser):
+        def error(self, message):  # one line, as every other refusal here, not the usage first
+            print(f"cosim: error: {message}", file=sys.stderr)
+            raise SystemExit(2)
+
     summary = textwrap.fill(" ".join(main.__doc__.split("\n\n")[0].split()), 88)
-    ap = argparse.ArgumentParser(prog="python -m kfgen.sim.ukf.run", description=summary, epilog=EXIT_CODES,
+    ap = Parser(prog="python -m kfgen.sim.ukf.run", description=summary, epilog=EXIT_CODES,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--app", required=True,
                     help="the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "

@@ -219,6 +219,23 @@ def test_run_rejects_before_building(tmp_path, monkeypatch, args, says):
     assert not out and not (tmp_path / "work").exists()
 
 
+@pytest.mark.parametrize("args,says", [
+    ([], "the following arguments are required: --app"),
+    (["--app", "tracker:Tracker", "--processor", "arm"], "argument --processor: invalid choice: 'arm'"),
+    (["--app", "tracker:Tracker", "--steps", "many"], "argument --steps: invalid int value: 'many'"),
+])
+def test_run_usage_errors_are_one_line(tmp_path, args, says):
+    import contextlib
+    import io
+
+    from kfgen.sim.ukf.run import main
+
+    with contextlib.redirect_stderr(io.StringIO()) as err, pytest.raises(SystemExit) as info:
+        main([*args, "-o", str(tmp_path / "work")])
+    assert info.value.code == 2 and err.getvalue().startswith(f"cosim: error: {says}"), err.getvalue()
+    assert err.getvalue().count("\n") == 1 and not (tmp_path / "work").exists()
+
+
 def test_run_help_gives_defaults_and_exit_codes():
     import contextlib
     import io
