@@ -430,6 +430,15 @@ def test_cli_bad_app_exits_2(app_file, tmp_path, spec, says):
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
 
 
+def test_cli_pendulum_example(tmp_path, monkeypatch):
+    """The docs' command for their example, from the checkout's top: a core sized for it."""
+    monkeypatch.chdir(ROOT)
+    proc = kfgen_in_process("ukf", "--app", "docs/examples/pendulum.py:Pendulum", "-o", tmp_path / "pendulum")
+    assert proc.returncode == 0, proc.stderr
+    man = json.loads((tmp_path / "pendulum" / "ukf.json").read_text())
+    assert man["sizes"]["M"] == 5 and UkfParams(**man["parameters"]).n == 2
+
+
 @pytest.mark.parametrize("spec", ["nanosat:Nanosat", "tracker:Tracker"])
 def test_cli_short_app_names(tmp_path, spec):
     """kfgen ukf --app takes the shipped applications' short names: the sizes come from them
