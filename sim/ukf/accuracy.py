@@ -25,7 +25,7 @@ def run_reference(app: UkfApplication, sc: Scenario) -> np.ndarray:
     """The float64 reference (:class:`~kfgen.sim.ukf.reference.AugmentedUKF`) over ``sc``."""
     ukf = AugmentedUKF(app.n, app.nw, app.nv, app.m, app.f, app.h, app.W0, app.x0, app.P0, app.Q, app.R)
     out = np.empty((len(sc.z), app.n))
-    for k, (u, z) in enumerate(zip(sc.u, sc.z)):
+    for k, (u, z) in enumerate(sc.inputs()):
         ukf.predict(u, app.dt)
         ukf.update(z)
         out[k] = ukf.x
@@ -44,7 +44,7 @@ def run_golden(app: UkfApplication, sc: Scenario, format: str = "binary32", pes:
     for name, words in initial_words(app, core.fmt).items():
         complete(core.write(name, words))
     out = np.empty((len(sc.z), app.n))
-    for k, (u, z) in enumerate(zip(sc.u, sc.z)):
+    for k, (u, z) in enumerate(sc.inputs()):
         complete(iteration(core, app, core.fmt, u, z))
         out[k] = from_words(core.fmt, complete(core.read("x")))
     return out

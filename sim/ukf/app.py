@@ -26,7 +26,9 @@ Write one subclass of :class:`UkfApplication`::
         def scenario(self, steps, seed):
             ...
 
-and load it with :func:`load_app` (``"my_module:Pendulum"``, or ``"path/to/file.py:Pendulum"``).
+(``docs/examples/pendulum.py`` is this example complete, with its scenario) and load it
+with :func:`load_app` (``"my_module:Pendulum"``, ``"path/to/file.py:Pendulum"``, or for the
+applications shipped in :mod:`kfgen.sim.ukf.apps` the short ``"nanosat:Nanosat"``).
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["AppError", "Scenario", "UkfApplication", "load_app"]
+__all__ = ["AppError", "Scenario", "UkfApplication", "load_app", "checked_scenario"]
 
 
 class AppError(ValueError):
@@ -53,12 +55,21 @@ class Scenario(NamedTuple):
     Iteration k (from 0) predicts with the control input ``u[k]`` over ``dt``, then updates
     with the measurement ``z[k]`` taken at time ``t[k]`` of the true state ``truth[k]``: the
     filter's estimate after iteration k is to be compared with ``truth[k]``.
+
+    Without a control input ``u`` is ``None`` (or an array of shape (K, 0)): f then gets an
+    empty array, shape (0,), as its ``u`` (:meth:`inputs`).
     """
 
     t: np.ndarray  #: (K,) time of each measurement, s (the first at dt)
     truth: np.ndarray  #: (K, n) the true states
-    u: np.ndarray  #: (K, p) control inputs passed to f (p = 0: none)
+    u: np.ndarray | None  #: (K, p) control inputs passed to f (None or p = 0: none)
     z: np.ndarray  #: (K, m) measurements
+
+    def inputs(self):
+        """``(u[k], z[k])`` for each iteration k, ``u[k]`` an empty array when ``u`` is None."""
+        z = np.asarray(self.z, dtype=np.float64)
+        u = np.zeros((len(z), 0)) if self.u is None else np.asarray(self.u, dtype=np.float64)
+        return zip(u, z)
 
 
 class UkfApplication:
@@ -106,13 +117,28 @@ class UkfApplication:
         raise NotImplementedError
 
     def core_parameters(self) -> dict:
-        """The UKF core's parameters (:class:`kfgen.hdl.ukf.params.UkfParams` fields) this
-        application fixes: its sizes and W0."""
+        """The UKF core's parameters this application fixes: its sizes and W0.
+
+        ``kfgen ukf --app`` starts from these (then ``--config`` and the command line
+        override them), and the co-simulation sizes its core with them.
+
+        Returns
+        -------
+        dict
+            Keyword arguments of :class:`kfgen.hdl.ukf.params.UkfParams`: ``states`` (n),
+            ``observations`` (m), ``process_noise`` (nw), ``measurement_noise`` (nv) and
+            ``w0`` (W0). The format, the processing elements and the name are not the
+            application's: pass them beside these,
+            ``UkfParams(**app.core_parameters(), format="binary64", pes=2)``.
+        """
         return {"states": int(self.n), "observations": int(self.m), "process_noise": int(self.nw),
                 "measurement_noise": int(self.nv), "w0": float(self.W0)}
 
     def check(self) -> None:
-        """Validate the sizes, W0, dt and the shapes of x0, P0, Q, R.
+        """Validate the sizes, W0, dt, x0 (finite, shape (n,)) and P0, Q, R: finite, of
+        their shapes, symmetric and positive definite (the core's ``sig_gen`` factorises
+        diag(P, Q, R) and raises ``err_pivot`` on a pivot that is not positive, so a
+        semi-definite Q or R would fail on the first iteration).
 
         Raises
         ------
@@ -132,21 +158,91 @@ class UkfApplication:
             raise AppError(f"{name}.dt must be a positive number of seconds, not {dt!r}")
         for key, shape in (("x0", (self.n,)), ("P0", (self.n, self.n)), ("Q", (self.nw, self.nw)),
                            ("R", (self.nv, self.nv))):
-            try:
-                a = np.asarray(getattr(self, key), dtype=np.float64)
-            except (TypeError, ValueError):
-                a = None
-            if a is None or a.shape != shape or not np.all(np.isfinite(a)):
-                got = "None" if a is None or getattr(self, key) is None else f"shape {a.shape}"
-                raise AppError(f"{name}.{key} must be a finite array of shape {shape}, not {got}")
+            a = _array(f"{name}.{key}", getattr(self, key), shape)
+            if key != "x0":
+                _positive_definite(f"{name}.{key}", a)
+
+
+def _array(what: str, value, shape: tuple) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` with finite entries, or an AppError."""
+    try:
+        a = None if value is None else np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != shape:
+        got = "None" if value is None else "not numbers" if a is None else f"shape {a.shape}"
+        raise AppError(f"{what} must be a finite array of shape {shape}, not {got}")
+    bad = np.argwhere(~np.isfinite(a))
+    if len(bad):
+        at = tuple(int(i) for i in bad[0])
+        raise AppError(f"{what} must be finite, not {float(a[at])} at {list(at)}")
+    return a
+
+
+def _positive_definite(what: str, a: np.ndarray) -> None:
+    """An AppError unless ``a`` is symmetric (to 1e-9 of its largest entry) and positive
+    definite (numpy's Cholesky factorisation succeeds)."""
+    if np.max(np.abs(a - a.T)) > 1e-9 * np.max(np.abs(a)):
+        i, j = (int(k) for k in np.unravel_index(np.argmax(np.abs(a - a.T)), a.shape))
+        raise AppError(f"{what} must be symmetric, not {float(a[i, j])} at [{i}, {j}] "
+                       f"and {float(a[j, i])} at [{j}, {i}]")
+    try:
+        np.linalg.cholesky(a)
+    except np.linalg.LinAlgError:
+        low = float(np.linalg.eigvalsh(a).min())
+        raise AppError(f"{what} must be positive definite (a covariance the filter can factorise), "
+                       f"not with eigenvalue {low:.3g}") from None
+
+
+def checked_scenario(app: UkfApplication, steps: int, seed: int) -> Scenario:
+    """``app.scenario(steps, seed)``, checked: exactly ``steps`` iterations, ``t`` (K,),
+    ``truth`` (K, n), ``u`` None or (K, p), ``z`` (K, m), u and z finite.
+
+    Raises
+    ------
+    AppError
+        With a one-line message: no ``scenario`` method, one that raises, or arrays that do
+        not fit.
+    """
+    name = type(app).__name__
+    if getattr(type(app), "scenario", None) is UkfApplication.scenario:
+        raise AppError(f"{name} defines no scenario(steps, seed): a run needs its measurements "
+                       f"(see kfgen.sim.ukf.app.Scenario)")
+    try:
+        sc = app.scenario(steps, seed)
+    except Exception as exc:  # the user's code: whatever it raises, one line
+        raise AppError(f"{name}.scenario({steps}, {seed}) failed: {type(exc).__name__}: {_one_line(exc)}") from None
+    if not isinstance(sc, tuple) or len(sc) != 4:
+        raise AppError(f"{name}.scenario() must return a Scenario(t, truth, u, z), not {type(sc).__name__}")
+    t, truth, u, z = sc
+    what = f"{name}.scenario({steps}, {seed})"
+    out = Scenario(_array(f"{what}.t", t, (steps,)), _array(f"{what}.truth", truth, (steps, app.n)),
+                   None, _array(f"{what}.z", z, (steps, app.m)))
+    if u is not None:
+        try:
+            shape = np.shape(u)
+        except (TypeError, ValueError):
+            shape = None
+        if shape is None or len(shape) != 2:
+            got = "not numbers" if shape is None else f"shape {shape}"
+            raise AppError(f"{what}.u must be None (no control input) or an array of shape ({steps}, p), not {got}")
+        width = shape[1]
+        out = out._replace(u=_array(f"{what}.u", u, (steps, width)))
+    return out
 
 
 def _one_line(text) -> str:
     return " ".join(str(text).split())
 
 
+#: Where the applications shipped with kfgen live: ``nanosat:Nanosat`` is short for
+#: ``kfgen.sim.ukf.apps.nanosat:Nanosat`` unless a module ``nanosat`` of the user's imports.
+SHIPPED = "kfgen.sim.ukf.apps"
+
+
 def _import(module: str):
-    """Import ``module`` (a dotted name, found from the current directory too, or a .py file)."""
+    """Import ``module`` (a dotted name, found from the current directory too, or a .py file;
+    failing that, a shipped application's module of that name, :data:`SHIPPED`)."""
     if module.endswith(".py"):
         path = Path(module)
         if not path.is_file():
@@ -159,8 +255,12 @@ def _import(module: str):
     sys.path.insert(0, str(Path.cwd()))
     try:
         return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name != module or "." in module or importlib.util.find_spec(f"{SHIPPED}.{module}") is None:
+            raise
     finally:
         sys.path.remove(str(Path.cwd()))
+    return importlib.import_module(f"{SHIPPED}.{module}")
 
 
 def load_app(spec: str) -> UkfApplication:
@@ -170,7 +270,9 @@ def load_app(spec: str) -> UkfApplication:
     ----------
     spec : str
         ``"module:Class"`` (a dotted module name, importable or found from the current
-        directory) or ``"path/to/file.py:Class"``; ``Class`` is a subclass of
+        directory; a name neither finds is looked up among the shipped applications, so
+        ``"nanosat:Nanosat"`` and ``"tracker:Tracker"`` work) or
+        ``"path/to/file.py:Class"``; ``Class`` is a subclass of
         :class:`UkfApplication` (or anything callable with no arguments that returns an
         instance of one).
 

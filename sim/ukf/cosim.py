@@ -19,11 +19,14 @@ on ``irq`` (or polls ``STATUS``) and on the master's transfers, each wait for a 
 by :func:`kfgen.sim.watchdog.bound` of its manifest cycles.
 
 Environment: ``KFGEN_TB_MANIFEST`` (the core's ``TOP.json``), ``KFGEN_APP`` (``module:Class``),
-``KFGEN_STEPS`` (iterations), ``KFGEN_SEED``, ``KFGEN_BEATS`` (``burst`` or ``single``: every
+``KFGEN_APP_DIR`` (a directory to import it from: the runner's current directory; a
+``file.py:Class`` spec must be absolute, the simulation runs elsewhere), ``KFGEN_STEPS``
+(iterations), ``KFGEN_SEED``, ``KFGEN_BEATS`` (``burst`` or ``single``: every
 transfer one beat at a time, as the chapter's processor), ``KFGEN_WAIT`` (``irq`` or ``poll``),
 ``KFGEN_DRIVER_LIB`` (the C driver's shared library, for ``c_processor``), ``KFGEN_COSIM_OUT``
 (an ``.npz`` to write: the estimates after every iteration, the truth, and the cycles of
-every step and transfer).
+every step and transfer), ``KFGEN_COSIM_FAULT`` (a ``.json`` written when a step raises
+``err_pivot`` or ``err_nan``: ``{"step", "bit", "iteration"}``, the test then fails).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import ctypes
 import json
 import logging
 import os
+import sys
 import time
 
 import cocotb
@@ -47,8 +51,8 @@ from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import Status, from_words, run
 from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
 
-from .app import load_app
-from .software import initial_words, iteration
+from .app import checked_scenario, load_app
+from .software import StepError, initial_words, iteration
 
 CLOCK_NS = 10
 
@@ -125,6 +129,7 @@ class CheckedBus:
         self.ctrl_addr = regs["CTRL"]["offset"]
         self.running = None  # (step, cycle of its start) from CTRL.start to the STATUS clear
         self.expired = None  # the watchdog's Expired, once a wait has run past its bound
+        self.last_step = None  # the step last started
 
     @staticmethod
     def now():
@@ -190,6 +195,7 @@ class CheckedBus:
         if addr == self.ctrl_addr and word >> self.gold.start_bit & 1:
             f = self.gold.step_field
             self.running = (self.gold.steps[word >> f["lsb"] & ((1 << f["width"]) - 1)], t0)
+            self.last_step = self.running[0]
         elif addr == self.status_addr and self.running and word >> self.status_bits["done"] & 1:
             step, start = self.running
             self.cycles[step] += self.now() - start
@@ -265,9 +271,11 @@ class Run:
     def __init__(self, dut):
         self.dut = dut
         self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+        if os.environ.get("KFGEN_APP_DIR"):  # the runner's directory, where its module:Class is found
+            sys.path.insert(0, os.environ["KFGEN_APP_DIR"])
         self.app = load_app(os.environ["KFGEN_APP"])
         self.steps = int(os.environ.get("KFGEN_STEPS", "20"))
-        self.scenario = self.app.scenario(self.steps, int(os.environ.get("KFGEN_SEED", "1")))
+        self.scenario = checked_scenario(self.app, self.steps, int(os.environ.get("KFGEN_SEED", "1")))
         cocotb.start_soon(Clock(dut.clk, CLOCK_NS, unit="ns").start())
         self.bus = CheckedBus(dut, self.manifest, os.environ.get("KFGEN_BEATS", "burst"),
                               os.environ.get("KFGEN_WAIT", "irq"))
@@ -284,6 +292,15 @@ class Run:
         irq = next((r for r in self.manifest["registers"] if r["name"] == "IRQ_ENABLE"), None)
         if irq is not None and self.bus.wait == "irq":
             await self.bus.write32(irq["offset"], sum(1 << f["lsb"] for f in irq["fields"]))
+
+    def fault(self, exc: StepError):
+        """Leave ``exc`` (placed at its iteration) for the runner in ``KFGEN_COSIM_FAULT``;
+        raises it, which fails the test."""
+        path = os.environ.get("KFGEN_COSIM_FAULT")
+        if path:
+            with open(path, "w") as f:
+                json.dump({"step": exc.step, "bit": exc.bit, "iteration": exc.iteration}, f)
+        raise exc
 
     def record(self, k, x_words, before):
         self.estimates[k] = from_words(self.fmt, x_words)
@@ -310,9 +327,12 @@ async def python_processor(dut):
     wall = time.monotonic()
     for name, words in initial_words(r.app, r.fmt).items():
         await r.io.write(name, words)
-    for k, (u, z) in enumerate(zip(r.scenario.u, r.scenario.z)):
+    for k, (u, z) in enumerate(r.scenario.inputs()):
         before = dict(r.bus.cycles)
-        await iteration(r.io, r.app, r.fmt, u, z)
+        try:
+            await iteration(r.io, r.app, r.fmt, u, z)
+        except StepError as exc:
+            r.fault(exc.at(k))
         r.record(k, await r.io.read("x"), before)
     await r.io.read("P")
     r.finish(time.monotonic() - wall)
@@ -409,13 +429,14 @@ async def c_processor(dut):
     await bridge(load)(ctypes.byref(dev), *(p for _, p in keep))
     check()
     x_out, P_out = arr(np.zeros(n)), arr(np.zeros(n * n))
-    for k, (u, z) in enumerate(zip(r.scenario.u, r.scenario.z)):
+    for k, (u, z) in enumerate(r.scenario.inputs()):
         before = dict(bus.cycles)
         state["u"] = u
         z_arr = arr(z)
         err = await bridge(iterate)(ctypes.byref(dev), models[0], models[1], None, z_arr[1])
         check()
-        assert err == 0, f"iteration {k}: {top}_iterate returned {err}"
+        if err:  # the STATUS bits of the step that failed (TOP_run's return)
+            r.fault(StepError(bus.last_step, "err_pivot" if err >> bus.status_bits["err_pivot"] & 1 else "err_nan", k))
         await bridge(estimate)(ctypes.byref(dev), x_out[1], P_out[1])
         check()
         r.estimates[k] = x_out[0]

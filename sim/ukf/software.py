@@ -47,7 +47,27 @@ class CoreIO(Protocol):
 
 
 class StepError(RuntimeError):
-    """A step raised ``err_pivot`` or ``err_nan``: the filter has failed numerically."""
+    """A step raised ``err_pivot`` or ``err_nan``: the filter has failed numerically.
+
+    Parameters
+    ----------
+    step : str
+        The step that raised it (``sig_gen``, ``predict``, ``update``).
+    bit : str
+        The STATUS bit, ``err_pivot`` (a pivot of a factorisation not positive: a covariance
+        that is not positive definite) or ``err_nan`` (a NaN or infinity in a result).
+    iteration : int or None
+        The filter iteration (from 0), when the caller knows it (:meth:`at`).
+    """
+
+    def __init__(self, step: str, bit: str, iteration: int | None = None):
+        self.step, self.bit, self.iteration = step, bit, iteration
+        where = "" if iteration is None else f"iteration {iteration}: "
+        super().__init__(f"{where}{step} raised {bit}")
+
+    def at(self, iteration: int) -> "StepError":
+        """The same fault, placed at filter iteration ``iteration``."""
+        return StepError(self.step, self.bit, iteration)
 
 
 def initial_words(app: UkfApplication, fmt) -> dict[str, list[int]]:
@@ -60,7 +80,7 @@ def initial_words(app: UkfApplication, fmt) -> dict[str, list[int]]:
 async def _step(io: CoreIO, name: str) -> None:
     st = await io.step(name)
     if st.pivot or st.nan:
-        raise StepError(f"{name} raised {'err_pivot' if st.pivot else 'err_nan'}")
+        raise StepError(name, "err_pivot" if st.pivot else "err_nan")
 
 
 async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z) -> None:

@@ -3,19 +3,20 @@ tracker applications, their accuracy in the float64 reference and in the bit-exa
 golden model of their cores, and ``kfgen ukf --app``."""
 
 import json
+import sys
 
 import numpy as np
 import pytest
 
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.sim.ukf.accuracy import run_golden, run_reference
-from kfgen.sim.ukf.app import AppError, UkfApplication, load_app
+from kfgen.sim.ukf.app import AppError, UkfApplication, checked_scenario, load_app
 from kfgen.sim.ukf.apps.nanosat import (G, STEPS, Nanosat, attitude_error_deg, euler_quaternion,
                                         euler_rotation, quat_multiply, rotation)
 from kfgen.sim.ukf.apps.tracker import Tracker
 from kfgen.sim.ukf.software import StepError
 
-from helpers import kfgen
+from helpers import ROOT, kfgen, kfgen_in_process
 
 NANOSAT = "kfgen.sim.ukf.apps.nanosat:Nanosat"
 #: Iterations of the default golden run: past convergence (about 0.3 s) and half a second more.
@@ -44,6 +45,21 @@ class Huge(Small):
     n = 300
     x0 = np.zeros(300)
     P0 = np.eye(300)
+
+class Indefinite(Small):
+    P0 = np.diag([1.0, -1.0, 1.0])
+
+class NanP0(Small):
+    P0 = [[1.0, np.nan, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+
+class Asymmetric(Small):
+    Q = [[1.0, 0.5], [0.0, 1.0]]
+
+class SemidefiniteR(Small):
+    R = np.zeros((1, 1))
+
+class InfX0(Small):
+    x0 = [0.0, np.inf, 0.0]
 '''
 
 
@@ -84,6 +100,12 @@ def test_load_file_and_current_directory(app_file, monkeypatch):
     ("fractions:Fraction", "is a Fraction, not a UkfApplication"),
     ("{file}:WrongShape", "WrongShape.Q must be a finite array of shape (2, 2), not shape (3, 3)"),
     ("{file}:NoSizes", "NoSizes.n must be a positive integer, not None"),
+    ("{file}:Indefinite", "Indefinite.P0 must be positive definite (a covariance the filter can factorise), "
+                          "not with eigenvalue -1"),
+    ("{file}:NanP0", "NanP0.P0 must be finite, not nan at [0, 1]"),
+    ("{file}:Asymmetric", "Asymmetric.Q must be symmetric, not 0.5 at [0, 1] and 0.0 at [1, 0]"),
+    ("{file}:SemidefiniteR", "SemidefiniteR.R must be positive definite"),
+    ("{file}:InfX0", "InfX0.x0 must be finite, not inf at [1]"),
     ("{dir}/broken.py:Broken", "cannot import"),
 ])
 def test_load_errors(app_file, spec, says):
@@ -93,6 +115,151 @@ def test_load_errors(app_file, spec, says):
         load_app(spec)
     assert says in str(info.value) and "\n" not in str(info.value), str(info.value)
     assert isinstance(info.value, ValueError)
+
+
+def test_short_names_of_shipped_apps():
+    """``nanosat:Nanosat`` and ``tracker:Tracker`` (as the docs write them) are the shipped ones."""
+    assert type(load_app("nanosat:Nanosat")) is Nanosat
+    assert type(load_app("tracker:Tracker")) is Tracker
+    with pytest.raises(AppError, match="module 'tracker' has no 'Nanosat'"):
+        load_app("tracker:Nanosat")
+
+
+@pytest.mark.parametrize("body,says", [
+    ("from kfgen.sim.ukf.apps.tracker import Tracker as T\nclass Tracker(T):\n    dt = 2.0\n", None),
+    ("import kfgen_no_such_dependency\n", "cannot import 'tracker': ModuleNotFoundError: No module named "
+                                           "'kfgen_no_such_dependency'"),
+])
+def test_users_module_wins_over_a_shipped_name(tmp_path, monkeypatch, body, says):
+    """A module of the user's named like a shipped one is the one loaded, even when it fails."""
+    (tmp_path / "tracker.py").write_text(body)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delitem(sys.modules, "tracker", raising=False)
+    try:
+        if says is None:
+            app = load_app("tracker:Tracker")
+            assert type(app).__module__ == "tracker" and app.dt == 2.0
+        else:
+            with pytest.raises(AppError) as info:
+                load_app("tracker:Tracker")
+            assert str(info.value) == says
+    finally:
+        sys.modules.pop("tracker", None)
+
+
+def test_core_parameters_as_documented():
+    """The docstring's use: the application's sizes and W0, with the core's own choices beside."""
+    app = Tracker()
+    p = UkfParams(**app.core_parameters(), format="binary64", pes=2)
+    assert (p.n, p.m, p.nw, p.nv, p.w0, p.pes, p.format) == (4, 2, 2, 2, 0.0, 2, "binary64")
+    assert "Returns" in UkfApplication.core_parameters.__doc__
+
+
+def test_step_error_names_iteration_step_and_bit():
+    exc = StepError("sig_gen", "err_pivot")
+    assert str(exc) == "sig_gen raised err_pivot" and exc.iteration is None
+    at = exc.at(3)
+    assert (at.step, at.bit, at.iteration) == ("sig_gen", "err_pivot", 3)
+    assert str(at) == "iteration 3: sig_gen raised err_pivot"
+
+
+# ---------------------------------------------------------------- scenarios
+
+PENDULUM = str(ROOT / "docs" / "examples" / "pendulum.py") + ":Pendulum"
+
+
+def test_pendulum_example():
+    """docs/examples/pendulum.py: sized, its scenario without a control input (u = None), and
+    the reference and binary32 golden model following it."""
+    app = load_app(PENDULUM)
+    assert app.core_parameters() == {"states": 2, "observations": 1, "process_noise": 2,
+                                     "measurement_noise": 1, "w0": 0.0}
+    sc = checked_scenario(app, 200, 1)
+    assert sc.u is None and sc.t.shape == (200,) and sc.truth.shape == (200, 2) and sc.z.shape == (200, 1)
+    ref, gold = run_reference(app, sc), run_golden(app, sc, "binary32")
+    assert np.max(np.abs(ref - gold)) < 1e-5
+    # the angle beats the one a single measurement gives (arcsin z), by a factor 2 or more
+    rms = np.sqrt(np.mean((ref[100:, 0] - sc.truth[100:, 0]) ** 2))
+    raw = np.sqrt(np.mean((np.arcsin(np.clip(sc.z[100:, 0], -1, 1)) - sc.truth[100:, 0]) ** 2))
+    assert rms < 0.5 * raw, (rms, raw)
+
+
+def test_no_control_input_is_an_empty_u():
+    """u = None in a scenario: f gets an empty array, shape (0,), in the reference, the golden
+    model and (through the same Scenario.inputs) the co-simulation; (K, 0) is the same."""
+    app = load_app(PENDULUM)
+    seen = []
+    original = app.f
+
+    def f(x, w, u, dt):
+        seen.append(np.shape(u))
+        return original(x, w, u, dt)
+    sc = checked_scenario(app, 3, 1)
+    app.f = f
+    ref = run_reference(app, sc)
+    gold = run_golden(app, sc)
+    assert set(seen) == {(0,)} and len(seen) > 6
+    empty = sc._replace(u=np.zeros((3, 0)))
+    assert np.array_equal(run_reference(app, empty), ref) and np.array_equal(run_golden(app, empty), gold)
+    assert [u.shape for u, _ in sc.inputs()] == [(0,)] * 3
+
+
+SCENARIOS = '''
+import numpy as np
+from kfgen.sim.ukf.app import Scenario, UkfApplication
+
+class Base(UkfApplication):
+    n, nw, nv, m = 2, 1, 1, 1
+    dt = 1.0
+    x0, P0, Q, R = np.zeros(2), np.eye(2), np.eye(1), np.eye(1)
+
+    def scenario(self, steps, seed):
+        k = np.arange(steps)
+        return Scenario(k * 1.0, np.zeros((steps, 2)), None, np.zeros((steps, 1)))
+
+class NoScenario(Base):
+    scenario = __import__("kfgen.sim.ukf.app").sim.ukf.app.UkfApplication.scenario
+
+class ShortZ(Base):
+    def scenario(self, steps, seed):
+        return super().scenario(steps, seed)._replace(z=np.zeros((steps - 1, 1)))
+
+class FlatU(Base):
+    def scenario(self, steps, seed):
+        return super().scenario(steps, seed)._replace(u=np.zeros(steps))
+
+class NanZ(Base):
+    def scenario(self, steps, seed):
+        sc = super().scenario(steps, seed)
+        sc.z[1, 0] = np.nan
+        return sc
+
+class Raises(Base):
+    def scenario(self, steps, seed):
+        raise KeyError("two\\nlines")
+
+class NotAScenario(Base):
+    def scenario(self, steps, seed):
+        return {"z": 1}
+'''
+
+
+@pytest.mark.parametrize("cls,says", [
+    ("NoScenario", "NoScenario defines no scenario(steps, seed): a run needs its measurements "
+                   "(see kfgen.sim.ukf.app.Scenario)"),
+    ("ShortZ", "ShortZ.scenario(4, 1).z must be a finite array of shape (4, 1), not shape (3, 1)"),
+    ("FlatU", "FlatU.scenario(4, 1).u must be None (no control input) or an array of shape (4, p), not shape (4,)"),
+    ("NanZ", "NanZ.scenario(4, 1).z must be finite, not nan at [1, 0]"),
+    ("Raises", "Raises.scenario(4, 1) failed: KeyError: 'two\\nlines'"),
+    ("NotAScenario", "NotAScenario.scenario() must return a Scenario(t, truth, u, z), not dict"),
+])
+def test_scenario_errors(tmp_path, cls, says):
+    path = tmp_path / "scenarios.py"
+    path.write_text(SCENARIOS)
+    assert checked_scenario(load_app(f"{path}:Base"), 4, 1).u is None
+    with pytest.raises(AppError) as info:
+        checked_scenario(load_app(f"{path}:{cls}"), 4, 1)
+    assert str(info.value) == says
 
 
 def test_base_class_models_are_required():
@@ -252,12 +419,33 @@ def test_cli_sizes_from_the_app(app_file, tmp_path):
     ("Nanosat", "--app: must be module:Class"),
     ("kfgen_no_such_module:App", "--app: cannot import 'kfgen_no_such_module'"),
     ("{file}:WrongShape", "--app: WrongShape.Q must be"),
+    ("{file}:Indefinite", "--app: Indefinite.P0 must be positive definite"),
+    ("{file}:NanP0", "--app: NanP0.P0 must be finite, not nan at [0, 1]"),
+    ("{file}:SemidefiniteR", "--app: SemidefiniteR.R must be positive definite"),
     ("{file}:Huge", "--states: the number of states must be an integer in 1..255, not 300 (from --app "),
 ])
 def test_cli_bad_app_exits_2(app_file, tmp_path, spec, says):
-    proc = kfgen("ukf", "--app", spec.replace("{file}", str(app_file)), "-o", tmp_path / "x", check=False)
+    proc = kfgen_in_process("ukf", "--app", spec.replace("{file}", str(app_file)), "-o", tmp_path / "x")
     assert proc.returncode == 2 and proc.stderr.startswith(f"kfgen: error: {says}"), proc.stderr
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
+
+
+def test_cli_pendulum_example(tmp_path, monkeypatch):
+    """The docs' command for their example, from the checkout's top: a core sized for it."""
+    monkeypatch.chdir(ROOT)
+    proc = kfgen_in_process("ukf", "--app", "docs/examples/pendulum.py:Pendulum", "-o", tmp_path / "pendulum")
+    assert proc.returncode == 0, proc.stderr
+    man = json.loads((tmp_path / "pendulum" / "ukf.json").read_text())
+    assert man["sizes"]["M"] == 5 and UkfParams(**man["parameters"]).n == 2
+
+
+@pytest.mark.parametrize("spec", ["nanosat:Nanosat", "tracker:Tracker"])
+def test_cli_short_app_names(tmp_path, spec):
+    """kfgen ukf --app takes the shipped applications' short names: the sizes come from them
+    (an out-of-range --pes is refused after --app loaded, so nothing is generated)."""
+    proc = kfgen_in_process("ukf", "--app", spec, "--pes", "999", "-o", tmp_path / "x")
+    assert proc.returncode == 2 and proc.stderr.startswith("kfgen: error: --pes: "), proc.stderr
+    assert not (tmp_path / "x").exists()
 
 
 def test_cli_app_only_for_cores_that_take_one(tmp_path):

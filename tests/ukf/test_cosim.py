@@ -11,7 +11,7 @@ from kfgen.sim.ukf.app import load_app
 from kfgen.sim.ukf.apps.nanosat import attitude_error_deg
 from kfgen.sim.ukf.run import build_driver, build_ukf_core, run_cosim
 
-from helpers import VERILATOR_CACHE, kfgen
+from helpers import ROOT, VERILATOR_CACHE, kfgen
 
 NANOSAT = "kfgen.sim.ukf.apps.nanosat:Nanosat"
 TRACKER = "kfgen.sim.ukf.apps.tracker:Tracker"
@@ -134,3 +134,196 @@ def test_c_driver_builds(tmp_path, fmt):
                                str(tmp_path / "ukf_driver.c"), "-o", str(tmp_path / "ukf_driver.o")],
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
+
+
+# ---------------------------------------------------------------- python -m kfgen.sim.ukf.run
+
+#: The README's application (its Pendulum), without a scenario.
+NO_SCENARIO = '''
+import numpy as np
+from kfgen.sim.ukf.app import UkfApplication
+
+class Pendulum(UkfApplication):
+    n, nw, nv, m = 2, 2, 1, 1
+    dt = 0.01
+    x0, P0 = np.array([0.1, 0.0]), np.eye(2)
+    Q, R = np.eye(2) * 1e-4, np.array([[1e-2]])
+
+    def f(self, x, w, u, dt):
+        return x + dt * np.array([x[1], -9.81 * np.sin(x[0])]) + w
+
+    def h(self, x, v):
+        return np.array([np.sin(x[0])]) + v
+
+class Indefinite(Pendulum):
+    P0 = np.array([[1.0, 2.0], [2.0, 1.0]])
+'''
+
+#: The Pendulum of docs/examples with a measurement beyond binary32's range at iteration 2:
+#: the core's update raises err_nan there.
+GLITCH = f'''
+import importlib.util
+
+spec = importlib.util.spec_from_file_location("pendulum_example", {str(ROOT / "docs" / "examples" / "pendulum.py")!r})
+example = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(example)
+
+class Glitch(example.Pendulum):
+    def scenario(self, steps, seed):
+        sc = super().scenario(steps, seed)
+        sc.z[2] = 1e39
+        return sc
+
+class ShortZ(example.Pendulum):
+    def scenario(self, steps, seed):
+        sc = super().scenario(steps, seed)
+        return sc._replace(z=sc.z[:-1])
+'''
+
+
+def cosim_main(*args):
+    """``python -m kfgen.sim.ukf.run ARGS`` in this process: (exit status, stdout, stderr)."""
+    import contextlib
+    import io
+
+    from kfgen.sim.ukf.run import main
+
+    with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as err:
+        code = main([str(a) for a in args])
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.mark.parametrize("args,says", [
+    (["--app", "{tmp}/readme.py:Pendulum"], "Pendulum defines no scenario(steps, seed)"),
+    (["--app", "{tmp}/readme.py:Indefinite"], "Indefinite.P0 must be positive definite"),
+    (["--app", "{tmp}/glitch.py:ShortZ", "--steps", "7"],
+     "ShortZ.scenario(7, 1).z must be a finite array of shape (7, 1), not shape (6, 1)"),
+    (["--app", "nanosat:Nanosat", "--format", "binary16", "--processor", "c"],
+     "--processor c: the C driver converts binary32 and binary64 elements only, not binary16 "
+     "(use --processor python)"),
+    (["--app", "tracker:Tracker", "--steps", "0"], "--steps must be a positive integer, not 0"),
+])
+def test_run_rejects_before_building(tmp_path, monkeypatch, args, says):
+    """What cannot run is refused in one line, exit 2, before anything is generated or built."""
+    import kfgen.gen.synth
+    import kfgen.sim.ukf.run as run
+
+    def never(*_a, **_k):
+        raise AssertionError("generated or built")
+    monkeypatch.setattr(kfgen.gen.synth, "write_core", never)
+    monkeypatch.setattr(run, "build_ukf_core", never)
+    (tmp_path / "readme.py").write_text(NO_SCENARIO)
+    (tmp_path / "glitch.py").write_text(GLITCH)
+    code, out, err = cosim_main(*(a.replace("{tmp}", str(tmp_path)) for a in args), "-o", tmp_path / "work")
+    assert code == 2 and err.startswith(f"cosim: error: {says}") and err.count("\n") == 1, err
+    assert not out and not (tmp_path / "work").exists()
+
+
+@pytest.mark.parametrize("args,says", [
+    ([], "the following arguments are required: --app"),
+    (["--app", "tracker:Tracker", "--processor", "arm"], "argument --processor: invalid choice: 'arm'"),
+    (["--app", "tracker:Tracker", "--steps", "many"], "argument --steps: invalid int value: 'many'"),
+])
+def test_run_usage_errors_are_one_line(tmp_path, args, says):
+    import contextlib
+    import io
+
+    from kfgen.sim.ukf.run import main
+
+    with contextlib.redirect_stderr(io.StringIO()) as err, pytest.raises(SystemExit) as info:
+        main([*args, "-o", str(tmp_path / "work")])
+    assert info.value.code == 2 and err.getvalue().startswith(f"cosim: error: {says}"), err.getvalue()
+    assert err.getvalue().count("\n") == 1 and not (tmp_path / "work").exists()
+
+
+def test_run_help_gives_defaults_and_exit_codes():
+    import contextlib
+    import io
+
+    from kfgen.sim.ukf.run import main
+
+    with contextlib.redirect_stdout(io.StringIO()) as out, pytest.raises(SystemExit) as info:
+        main(["--help"])
+    text = " ".join(out.getvalue().split())
+    assert info.value.code == 0
+    for says in ("--seed SEED the scenario's seed (default 1)", "AXI bursts or single beats (default burst)",
+                 "wait for irq or poll STATUS (default irq)", "iterations (default 20)",
+                 "2 bad arguments or application", "3 the core raised a numerical fault"):
+        assert says in text, says
+
+
+def test_run_fault_is_one_line_exit_3(tmp_path, monkeypatch):
+    """A StepError out of the co-simulation: one line naming the iteration, the step and the
+    bit, exit 3 (the runner's part; the run's part is test_pendulum_fault)."""
+    import kfgen.gen.synth
+    import kfgen.sim.ukf.run as run
+    from kfgen.sim.ukf.software import StepError
+
+    def fault(*_a, **_k):
+        raise StepError("sig_gen", "err_pivot", 7)
+    monkeypatch.setattr(kfgen.gen.synth, "write_core", lambda core, params, out: (tmp_path, None))
+    monkeypatch.setattr(run, "build_ukf_core", lambda *a, **k: None)
+    monkeypatch.setattr(run, "run_cosim", fault)
+    code, out, err = cosim_main("--app", "tracker:Tracker", "--steps", "3", "-o", tmp_path)
+    assert code == 3 and not out and err.count("\n") == 1, err
+    assert err.startswith("cosim: error: the core raised a numerical fault at iteration 7: sig_gen raised "
+                          "err_pivot (a pivot not positive: a covariance that is not positive definite)"), err
+
+
+@pytest.fixture(scope="module")
+def pendulum_work(build_root):
+    """One work directory for the Pendulum's runs: one generated core (M = 5, P = 1), one
+    Verilator build (about 20 s) for all of them."""
+    return build_root / "pendulum_cosim"
+
+
+def run_command(*args, cwd):
+    """``python -m kfgen.sim.ukf.run ARGS`` as a user runs it: not under pytest (whose
+    variable makes cocotb's runner log a failed test itself)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}
+    return subprocess.run([sys.executable, "-m", "kfgen.sim.ukf.run", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, env=env)
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("cosim_pendulum")
+def test_pendulum_example_cosimulates(pendulum_work):
+    """The docs' example as the docs run it (docs/examples/pendulum.py, from the checkout's
+    top): every word equal to the golden model's, and cosim.npz as documented."""
+    from kfgen.sim.ukf.accuracy import run_golden
+    from kfgen.sim.ukf.app import checked_scenario
+
+    steps = 5
+    proc = run_command("--app", "docs/examples/pendulum.py:Pendulum", "--steps", steps, "-o", pendulum_work, cwd=ROOT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.startswith(f"{steps} iterations of docs/examples/pendulum.py:Pendulum on ukf_app (P = 1, "
+                                  "binary32), python processor, burst transfers, irq: every word equal"), proc.stdout
+    app = load_app(str(ROOT / "docs" / "examples" / "pendulum.py") + ":Pendulum")
+    sc = checked_scenario(app, steps, 1)
+    with np.load(pendulum_work / "ukf_app" / "cosim.npz") as d:
+        assert sorted(d.files) == ["cycles", "cycles_columns", "estimates", "sim_cycles", "t", "truth", "wall_s"]
+        assert np.array_equal(d["estimates"], run_golden(app, sc, "binary32"))
+        assert np.array_equal(d["truth"], sc.truth) and np.array_equal(d["t"], sc.t)
+        assert d["cycles"].shape == (steps, 4) and list(d["cycles_columns"]) == ["sig_gen", "predict", "update",
+                                                                                 "transfer"]
+        assert np.all(d["cycles"] > 0) and int(d["sim_cycles"]) > d["cycles"].sum() and float(d["wall_s"]) > 0
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("cosim_pendulum")
+@pytest.mark.parametrize("processor", ["python", "c"])
+def test_pendulum_fault(pendulum_work, tmp_path, processor):
+    """A numerical fault in the core (a measurement beyond binary32 at iteration 2): one line
+    naming the iteration, the step and the bit, exit 3, from either processor; the app given
+    as a file relative to the current directory (the simulation runs elsewhere)."""
+    (tmp_path / "glitch.py").write_text(GLITCH)
+    proc = run_command("--app", "glitch.py:Glitch", "--steps", 4, "--processor", processor, "-o", pendulum_work,
+                       cwd=tmp_path)
+    assert proc.returncode == 3 and not proc.stdout and proc.stderr.count("\n") == 1, proc.stdout + proc.stderr
+    assert proc.stderr.startswith("cosim: error: the core raised a numerical fault at iteration 2: update raised "
+                                  "err_nan (a NaN or infinity in a result); log "), proc.stderr
+    assert not (pendulum_work / "ukf_app" / "cosim.npz").exists()
