@@ -259,12 +259,55 @@ def test_ukf_small_core_cycles(described):
     assert [_int(g) for g in row.groups()] == [*steps, sum(steps)]
 
 
-def test_imm_page_default_row(described):
-    page = _page("docs/imm.md")
-    imm = described("imm")
-    row = re.search(r"\| 5 \| 1 \| iterative \| 2 \| ([\d,]+) \| ([\d,]+) \| ([\d,]+) \| ([\d,]+) \|", page)
-    assert [_int(g) for g in row.groups()] == [imm["cycles"]["iterate"], imm["bounds"]["fma"],
-                                               imm["bounds"]["fma_per_pe"], imm["bounds"]["chain"]]
+def test_imm_cycles_table_is_the_manifests(described):
+    """Every row of the IMM page's cycles table (R, P, divider, banks, cycles, FMAs, FMAs / P,
+    chain bound, ratio, program store, operand words) is the manifest's."""
+    rows = re.findall(r"^\| (\d) \| (\d) \| (iterative|pipelined) \| (\d+) \| ([\d,]+) \| ([\d,]+) \| ([\d,]+) \| "
+                      r"([\d,]+) \| ([\d.]+) \| ([\d,]+) \| ([\d,]+) \|$", (ROOT / "docs" / "imm.md").read_text(), re.M)
+    assert len(rows) == 9
+    for r, pes, div_sqrt, banks, cycles, fmas, per_pe, chain, ratio, bits, words in rows:
+        m = described("imm", models=int(r), pes=int(pes))
+        engine, bounds = m["engine"], m["bounds"]
+        assert (m["parameters"]["div_sqrt"], engine["banks"]) == (div_sqrt, int(banks)), (r, pes)
+        assert [_int(cycles), _int(fmas), _int(per_pe), _int(chain)] == \
+            [m["cycles"]["iterate"], bounds["fma"], bounds["fma_per_pe"], bounds["chain"]], (r, pes)
+        assert float(ratio) == round(m["cycles"]["iterate"] / max(bounds["fma_per_pe"], bounds["chain"]), 2)
+        assert [_int(bits), _int(words)] == [engine["program_store"]["bits"], engine["memory_words"]], (r, pes)
+
+
+def test_ukf_cycles_are_the_manifests(described):
+    """The UKF page's cycles (both tables, P = 1, 2, 5, 10), the program store beside the
+    Xilinx figures, and the two trade-offs it quotes (iterative against pipelined divider at
+    P = 1, 8 against 10 banks at P = 10)."""
+    text = (ROOT / "docs" / "ukf.md").read_text()
+    page = " ".join(text.split())
+
+    def steps(m):
+        return [m["cycles"][k] for k in ("sig_gen", "predict", "update")]
+
+    for pes, banks in ((2, 4), (5, 5), (10, 8)):
+        m = described("ukf", pes=pes)
+        assert m["engine"]["banks"] == banks
+        row = re.search(rf"^\| 7/6/7/6, P = {pes} \((?:pipelined|{banks} banks)\) \| ([\d,]+) \| ([\d,]+) \| ([\d,]+) \| "
+                        r"([\d,]+) \|$", text, re.M)
+        assert [_int(g) for g in row.groups()] == [*steps(m), sum(steps(m))], pes
+    for pes in (1, 2, 5, 10):
+        m = described("ukf", pes=pes)
+        row = re.search(rf"^\| {pes} \((?:iterative|pipelined)[^|]*, (\d+) banks\) \| ([\d,]+) \| ([\d,]+) \| "
+                        r"([\d,]+) \| ([\d,]+) \|", text, re.M)
+        assert _int(row.group(1)) == m["engine"]["banks"]
+        assert [_int(g) for g in row.groups()[1:]] == [*steps(m), sum(steps(m))], pes
+        row = re.search(rf"^\| {pes} \| [\d,]+ \| [\d,]+ \| [\d,]+ \| [\d,]+ \| \d+ \| \d+ \| [\d.]+ \| [\d.]+ \| "
+                        r"([\d,]+) \(", text, re.M)
+        assert _int(row.group(1)) == m["engine"]["program_store"]["bits"], pes
+    iterative, pipelined = described("ukf", pes=1), described("ukf", pes=1, div_sqrt="pipelined")
+    m = re.search(r"about (\d+) % more cycles: ([\d,]+) against ([\d,]+)", page)
+    assert [_int(m.group(2)), _int(m.group(3))] == [sum(steps(iterative)), sum(steps(pipelined))]
+    assert _int(m.group(1)) == round(100 * (sum(steps(iterative)) / sum(steps(pipelined)) - 1))
+    eight, ten = described("ukf", pes=10), described("ukf", pes=10, banks=10)
+    m = re.search(r"8 banks take ([\d.]+) % more cycles than 10: ([\d,]+) against ([\d,]+)", page)
+    assert [_int(m.group(2)), _int(m.group(3))] == [sum(steps(eight)), sum(steps(ten))]
+    assert float(m.group(1)) == round(100 * (sum(steps(eight)) / sum(steps(ten)) - 1), 1)
 
 
 def test_schur_page_latency(described):
