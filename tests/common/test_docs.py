@@ -445,3 +445,15 @@ def test_long_commands_run(command, tmp_path):
         args[0] = str(bindir / Path(args[0]).name)
         proc = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_engine_cores_parameter_tables(described):
+    """The defaults the UKF and IMM pages print instead of "the unit's own"."""
+    for name, page, expected in (("ukf", "docs/ukf.md", {"banks": 2, "div_sqrt": "iterative", "pes": 1}),
+                                 ("imm", "docs/imm.md", {"banks": 2, "div_sqrt": "iterative", "pes": 1})):
+        m = described(name)
+        width = m["parameters"]["address_width"]
+        assert f"the smallest that holds the map ({width}: {2 ** width // 1024} KB)" in _page(page)
+        assert {k: m["parameters"][k] for k in expected} == expected
+    assert described("imm", pes=3)["engine"]["banks"] == 6  # 2P
+    assert [described("ukf", pes=p)["engine"]["banks"] for p in (2, 3, 8, 9)] == [4, 3, 8, 8]
