@@ -36,6 +36,8 @@ RUN_HERE = {
     "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum",
     "kfgen castella --tracks 8 --name trk --clock-mhz 125 -o cores/trk",
 }
+#: Of those, the one that needs the example application docs/examples/pendulum.py: run alone.
+PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"
 
 #: Make targets (the Makefile must have them).
 MAKE = {"make verilog", "make test"}
@@ -134,7 +136,7 @@ def outputs(tmp_path_factory):
     cwd = os.getcwd()
     os.chdir(ROOT)
     try:
-        for command in sorted(RUN_HERE):
+        for command in sorted(RUN_HERE - {PENDULUM}):
             args = _args(command, tmp)
             try:
                 proc = kfgen_in_process(*args)
@@ -158,6 +160,16 @@ def test_generation_commands_run(outputs):
         else:
             assert out.stdout, command
     assert outputs["kfgen --version"].stdout.startswith("kfgen ")
+
+
+def test_pendulum_example_sizes_a_core(tmp_path, monkeypatch):
+    """The applications page's example, from the repository as a user runs it."""
+    monkeypatch.chdir(ROOT)
+    args = _args(PENDULUM, tmp_path)
+    proc = kfgen_in_process(*args)
+    assert proc.returncode == 0, proc.stderr
+    sizes = json.loads((Path(args[-1]) / "ukf.json").read_text())["sizes"]
+    assert sizes["n"] == 2 and sizes["m"] == 1, sizes
 
 
 def manifest(outputs, command, top):
