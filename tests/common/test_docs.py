@@ -469,3 +469,15 @@ def test_engine_cores_parameter_tables(described):
         assert {k: m["parameters"][k] for k in expected} == expected
     assert described("imm", pes=3)["engine"]["banks"] == 6  # 2P
     assert [described("ukf", pes=p)["engine"]["banks"] for p in (2, 3, 8, 9)] == [4, 3, 8, 8]
+
+
+def test_usage_page_names_the_engine_manifest_keys(described):
+    page = _page("docs/usage.md")
+    for name in ("ukf", "imm"):
+        m = described(name)
+        assert m["latency_cycles"] is None and m["initiation_interval"] is None
+        for key in ("cycles", "cycles_definition", "engine", "bus", "registers", "memories", "sizes"):
+            assert key in m and f"| `{key}` |" in page or f"`{key}`" in page, (name, key)
+        for key in m["sizes"]:
+            assert f"`{key}`" in page, (name, key)
+    assert "bounds" in described("imm") and "| `bounds` |" in page
