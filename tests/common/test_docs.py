@@ -480,3 +480,21 @@ def test_usage_page_names_the_engine_manifest_keys(described):
         for key in m["sizes"]:
             assert f"`{key}`" in page, (name, key)
     assert "bounds" in described("imm") and "| `bounds` |" in page
+
+
+@pytest.mark.parametrize("core_name", ["ukf", "imm"])
+def test_region_offsets_are_the_manifests(described, core_name):
+    """The region tables of the UKF and IMM pages: every region the manifest has, at its offset."""
+    memories = {m["name"]: m for m in described(core_name)["memories"]}
+    seen = set()
+    for first, second in re.findall(r"^\| ((?:`\w+`[^|]*?)+) \| ((?:0x[0-9A-F]+(?:, )?)+) \|",
+                                     (ROOT / "docs" / f"{core_name}.md").read_text(), re.M):
+        names = [n for n in re.findall(r"`(\w+)`", first) if n in memories]
+        if not names:
+            continue  # a register's row
+        offsets = re.findall(r"0x[0-9A-F]+", second)
+        assert len(names) == len(offsets), first
+        for name, offset in zip(names, offsets):
+            assert memories[name]["offset"] == int(offset, 16), name
+            seen.add(name)
+    assert seen == set(memories)
