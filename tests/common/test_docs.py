@@ -322,10 +322,17 @@ def test_ukf_cycles_are_the_manifests(described):
 
 
 def test_schur_page_latency(described):
-    page = _page("docs/schur.md")
+    """The Schur page's units-and-latency table (d = 1, 2, 3, 4, 8) and its FIFO depth."""
+    text = (ROOT / "docs" / "schur.md").read_text()
+    page = " ".join(text.split())
+    rows = re.findall(r"^\| (\d) \| (\d+) \| (\d+) \| (\d+) \| (\d+) \| (\d+) \|$", text, re.M)
+    assert [int(r[0]) for r in rows] == [1, 2, 3, 4, 8]
+    for d, mul, add, sub, div, latency in rows:
+        m = described("schur", size=int(d))
+        assert [int(mul), int(add), int(sub), int(div)] == [m["units"][k] for k in ("mul", "add", "sub", "div")], d
+        assert int(latency) == m["latency_cycles"], d
     schur = described("schur", size=2)
-    row = re.search(r"\| 2 \| 7 \| 1 \| 1 \| 2 \| (\d+) \|", page)
-    assert _int(row.group(1)) == schur["latency_cycles"]
+    assert f"ceil(latency / K) + 1 results deep: {schur['fifo_depth']} by default" in page
     assert f"2 (Ld + Lm + La) + 3 for d = 2: {schur['latency_cycles']} cycles by default" in page
 
 
