@@ -505,3 +505,20 @@ def test_region_offsets_are_the_manifests(described, core_name):
             assert memories[name]["offset"] == int(offset, 16), name
             seen.add(name)
     assert seen == set(memories)
+
+
+def test_fpu_page_default_stages(described):
+    """The default stages the FPU page prints (instead of "the unit's own") are the units'."""
+    page = _page("docs/fpu.md")
+
+    def s(op, fmt="binary32", **kw):
+        return described("fpu", op=op, format=fmt, **kw)["parameters"]["stages"]
+
+    assert (f"binary32: div {s('div')}, sqrt {s('sqrt')}, i2f {s('i2f')}; binary16: div {s('div', 'binary16')}, "
+            f"sqrt {s('sqrt', 'binary16')}; binary64: div {s('div', 'binary64')}, sqrt {s('sqrt', 'binary64')};") in page
+    assert (f"f2i {s('f2i')}, and i2f {s('i2f', 'binary16')} outside binary32; exp {s('exp')} in binary32, "
+            f"{s('exp', 'binary16')} in binary16 and bfloat16, {s('exp', 'binary64')} in binary64") in page
+    assert s("exp", "bfloat16") == s("exp", "binary16") and s("i2f", "binary64") == s("i2f", "binary16")
+    assert (f"add/sub {s('add')}, mul {s('mul')} and fma {s('fma')} are fixed for every format") in page
+    assert (f"binary32: add and sub {s('add')}, mul {s('mul')}, fma {s('fma')}, div {s('div')}, sqrt {s('sqrt')}, "
+            f"i2f {s('i2f')}, f2i {s('f2i')}, exp {s('exp')}") in page
