@@ -395,37 +395,3 @@ def test_manifest(tmp_path, kwargs):
     for p in manifest["ports"]:
         rng = f"[{p['width'] - 1}:0] " if p["width"] > 1 else ""
         assert re.search(rf"^\s*{p['direction']} {re.escape(rng)}{p['name']};", verilog, re.M), p["name"]
-
-
-def _excerpt_of(example, real, where="manifest"):
-    """``example`` is ``real`` with keys and list items left out, nothing changed or added."""
-    if isinstance(example, dict):
-        assert isinstance(real, dict), where
-        for key, value in example.items():
-            assert key in real, f"{where}.{key} is not in the real manifest"
-            _excerpt_of(value, real[key], f"{where}.{key}")
-    elif isinstance(example, list):
-        assert isinstance(real, list), where
-        names = [item.get("name") for item in real]
-        last = -1
-        for item in example:
-            index = names.index(item["name"])  # items named as in the real list, in its order
-            assert index > last, f"{where}: {item['name']} out of order"
-            _excerpt_of(item, real[index], f"{where}[{item['name']}]")
-            last = index
-    else:
-        assert example == real, f"{where}: README says {example!r}, the manifest {real!r}"
-
-
-def test_readme_manifest_example_is_real(default_out):
-    """The README's manifest example parses and is an excerpt of the real default manifest."""
-    from pathlib import Path
-
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    block = readme.split("<!-- manifest-example: kfgen castella -->", 1)[1]
-    text = block.split("```json", 1)[1].split("```", 1)[0]
-    example = json.loads(text)
-    out, _ = default_out
-    real = json.loads((out / "castella.json").read_text())
-    _excerpt_of(example, real)
-    assert len(example["ports"]) >= 3 and "fields" in example["ports"][-1]

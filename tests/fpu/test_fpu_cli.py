@@ -68,10 +68,10 @@ def test_count_errors_quote_the_range_functions(tmp_path):
         f"not {hi + 1}"
 
 
-def test_help_and_readme_quote_the_ranges_and_the_design_clock():
+def test_help_and_docs_quote_the_ranges_and_the_design_clock():
     help_text = " ".join(kfgen("fpu", "--help").stdout.split())
-    readme = " ".join((ROOT / "README.md").read_text().split())
-    for text in (help_text, readme):
+    page = " ".join((ROOT / "docs" / "fpu.md").read_text().split())
+    for text in (help_text, page):
         assert f"in binary32: {ranges_text('stages')}" in text
         assert f"in binary32: {ranges_text('cycles_per_op')}" in text
         assert f"designed for {CLOCK_MHZ} MHz" in text
