@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, kfgen, kfgen_in_process
+from helpers import ROOT, kfgen, kfgen_in_process
 
 pytestmark = pytest.mark.xdist_group("docs")
 
