@@ -24,7 +24,7 @@ def engine_docs() -> dict[str, Doc]:
                       "(any case)"),
         "irq": Doc("the irq output and the IRQ_ENABLE register", "",
                    "on or off (in a --config file: irq = true or false)"),
-        "address_width": Doc("width of the AXI byte address (the unit's own: the smallest that holds "
+        "address_width": Doc("width of the AXI byte address (by default the smallest that holds "
                              "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
