@@ -13,6 +13,7 @@ import re
 import shlex
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -399,7 +400,12 @@ def test_python_examples_run(tmp_path, monkeypatch):
     ran = 0
     for page in PAGES:
         for code in re.findall(r"^```python\n(.*?)^```", page.read_text(), re.M | re.S):
-            exec(compile(code, f"{page.name} example", "exec"), {"__name__": "docs_example"})
+            if code.startswith("# hdl/kf/"):
+                continue  # a file of engine-core.md's package: test_engine_core_doc builds and runs those
+            # a real module, so that dataclasses and pickling find what the example defines
+            module = types.ModuleType("docs_example")
+            monkeypatch.setitem(sys.modules, "docs_example", module)
+            exec(compile(code, f"{page.name} example", "exec"), module.__dict__)
             ran += 1
     assert ran >= 2
 
