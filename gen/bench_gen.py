@@ -3,7 +3,7 @@
 Each row runs ``kfgen CORE --pes P -o DIR`` as a subprocess and reports its wall time and its
 peak resident memory, children (Yosys) included: ``wait4``'s maximum RSS of the child, which
 Linux folds its own reaped children into. The CLI refuses, at validation, what would not fit
-in :data:`LIMIT_SECONDS` and :data:`LIMIT_MB` (:func:`kfgen.hdl.ukf.params.check_generation`);
+in :data:`LIMIT_SECONDS` and :data:`LIMIT_MB` (:func:`kfgen.hdl.engine.params.check_generation`);
 this table is the measurement those limits rest on. ``make bench`` prints it after the UKF's
 and the IMM's own tables.
 """
