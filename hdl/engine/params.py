@@ -11,7 +11,8 @@ from ..arith.float.format import FloatFormat
 from ..describe import ParamError, check_name
 
 __all__ = ["FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "GEN_PES_MAX", "GEN_CROSSBAR_MAX",
-           "check_div_sqrt", "check_format", "check_bus", "check_generation"]
+           "GEN_WORK_MAX", "GEN_WORK_PES", "WORK_RULE", "generation_work", "check_div_sqrt", "check_format", "check_bus",
+           "check_generation", "check_work"]
 
 #: Widest float format: one element is at most two 32-bit bus words.
 FORMAT_WIDTH_MAX = 64
@@ -27,19 +28,52 @@ DIV_SQRT = ("iterative", "pipelined")
 #: two-core machine (docs/benchmarks.md; ``python -m kfgen.gen.bench_gen`` measures them).
 GEN_PES_MAX = 16
 GEN_CROSSBAR_MAX = 128
+#: The scheduler's time grows with the programs' multiply-adds (faster than linearly), and the
+#: program ROMs' elaboration with multiply-adds times P: generation stays within 60 s and 2 GB
+#: while :func:`generation_work` is at most this (measured at the limit: 13-25 s at P <= 4,
+#: 31-46 s at P = 16 with binary32 and binary64).
+GEN_WORK_MAX = 20_000
+GEN_WORK_PES = 4
+
+_WHY = "generation above that needs more than 60 s or 2 GB; see docs/benchmarks.md"
+#: The work rule in words, for the parameters' help.
+WORK_RULE = (f"the programs' multiply-adds x max({GEN_WORK_PES}, P) / {GEN_WORK_PES} at most "
+             f"{GEN_WORK_MAX:,}, the most that generates in 60 s and 2 GB")
 
 
 def check_generation(pes: int, banks: int, default_banks) -> None:
     """Refuse, before any build, an engine core that would not generate in 60 s and 2 GB: at
     most :data:`GEN_PES_MAX` PEs and a crossbar of at most :data:`GEN_CROSSBAR_MAX` lanes times
     banks. ``default_banks(P)`` is the core's default bank count, for the message."""
-    why = "generation above that needs more than 60 s or 2 GB; see docs/benchmarks.md"
+    why = _WHY
     if pes > GEN_PES_MAX:
         raise ParamError("pes", f"at most {GEN_PES_MAX}, not {pes} ({why})")
     if pes * banks > GEN_CROSSBAR_MAX:
         top = max(p for p in range(1, GEN_PES_MAX + 1) if p * default_banks(p) <= GEN_CROSSBAR_MAX)
         raise ParamError("pes", f"P = {pes} with {banks} banks is a {pes} x {banks} crossbar; P x banks must be at "
                                 f"most {GEN_CROSSBAR_MAX} (P <= {top} with the default banks; {why})")
+
+
+def generation_work(fma: int, pes: int) -> int:
+    """The generation work of programs of ``fma`` multiply-adds on ``pes`` PEs: the
+    multiply-adds, times P / :data:`GEN_WORK_PES` above that many PEs."""
+    return fma * max(GEN_WORK_PES, pes) // GEN_WORK_PES
+
+
+def check_work(fma: int, pes: int, sizes: str, at_least: bool = False) -> None:
+    """Refuse programs of ``fma`` multiply-adds on ``pes`` PEs whose :func:`generation_work`
+    is above :data:`GEN_WORK_MAX`: ``ParamError("pes")`` when fewer PEs would generate,
+    else ``ParamError(sizes)`` (the parameter that names the core's sizes). ``at_least``:
+    ``fma`` is a lower bound from the sizes alone (checked before the programs are built)."""
+    if generation_work(fma, pes) <= GEN_WORK_MAX:
+        return
+    held = f"these sizes' programs hold {'at least ' if at_least else ''}{fma:,} multiply-adds"
+    rule = (f"multiply-adds x max({GEN_WORK_PES}, P) / {GEN_WORK_PES} must be at most {GEN_WORK_MAX:,}")
+    if fma <= GEN_WORK_MAX:
+        top = max(p for p in range(1, GEN_PES_MAX + 1) if generation_work(fma, p) <= GEN_WORK_MAX)
+        fewer = f"fewer PEs than {pes}" if at_least else f"P <= {top} for these sizes"
+        raise ParamError("pes", f"{held}: at P = {pes} that is more than generates ({rule}: {fewer}; {_WHY})")
+    raise ParamError(sizes, f"{held}, more than generates ({rule}; {_WHY})")
 
 
 def check_div_sqrt(value, pes: int) -> str:

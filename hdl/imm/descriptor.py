@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
-from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX
+from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
@@ -16,12 +16,12 @@ def _docs() -> dict[str, Doc]:
     return {
         "models": Doc("models R: filters mixed by the IMM, each with its own F, Q, H, R", "",
                       f"an integer in 2..{MODELS_MAX}"),
-        "states": Doc("states n of every model", "", f"an integer in 1..{STATES_MAX}"),
+        "states": Doc("states n of every model", "", f"an integer in 1..{STATES_MAX}; with R, d and P: {WORK_RULE}"),
         "measurements": Doc("measurements d: the length of z (S^-1 by Schur complements)", "",
                             f"an integer in 1..{D_MAX}"),
         "pes": Doc("processing elements P (FMAs working in parallel)", "",
                    f"an integer in 1..{GEN_PES_MAX} with P x banks <= {GEN_CROSSBAR_MAX} (P <= 8 with the "
-                   "default banks): the most that generates in 60 s and 2 GB"),
+                   "default banks): the most that generates in 60 s and 2 GB; see --states for the sizes' limit"),
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
                         "their area) or pipelined (one operation a cycle); by default iterative at P = 1, "
                         "pipelined above", "", "iterative or pipelined (any case)"),

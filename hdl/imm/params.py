@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
-from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation
+from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 
@@ -76,6 +76,9 @@ class ImmParams:
             raise ParamError("banks", f"must be an integer in 2..{2 * PES_MAX}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
         check_generation(self.pes, banks, lambda p: 2 * p)
+        # each model's covariance prediction F P F^T alone is 2 n^3 multiply-adds (the exact
+        # count is checked against the program before scheduling, in .steps)
+        check_work(2 * self.R * self.n ** 3, self.pes, "states", at_least=True)
         object.__setattr__(self, "format", check_format(self.format))
         check_bus(self)
         from .regmap import imm_map  # checks that the map fits, and gives the width it needs

@@ -9,6 +9,7 @@ import dataclasses
 from ..arith.float.exp import FloatExp
 from ..engine.machine import machine as engine_machine
 from ..engine.machine import schedules as engine_schedules
+from ..engine.params import check_work
 from .programs import ImmPrograms, ImmSizes, build_imm
 
 __all__ = ["programs", "machine", "schedules"]
@@ -28,4 +29,5 @@ def machine(params):
 def schedules(params, progs: ImmPrograms | None = None) -> dict:
     """``{"iterate": Schedule}``."""
     progs = progs or programs(params)
+    check_work(sum(prog.fma_count for prog in progs.steps.values()), params.pes, "states")
     return engine_schedules(progs.steps, machine(params))

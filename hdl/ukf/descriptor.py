@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
-from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX
+from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from .params import SIZE_MAX, UkfParams
 from .regmap import STEPS
@@ -14,13 +14,13 @@ __all__ = ["CORE"]
 def _docs() -> dict[str, Doc]:
     size = f"an integer in 1..{SIZE_MAX}"
     return {
-        "states": Doc("states n: the length of x", "", size),
+        "states": Doc("states n: the length of x", "", f"{size}; with m, nw, nv and P: {WORK_RULE}"),
         "observations": Doc("observations m: the length of z", "", size),
         "process_noise": Doc("process-noise terms nw: Q is nw x nw, and f takes them with x", "", size),
         "measurement_noise": Doc("measurement-noise terms nv: R is nv x nv, and h takes them", "", size),
         "pes": Doc("processing elements P (FMAs working in parallel)", "", "an integer in 1..M, M = n + nw + nv, "
                    f"at most {GEN_PES_MAX} with P x banks <= {GEN_CROSSBAR_MAX} (the most that "
-                   "generates in 60 s and 2 GB)"),
+                   "generates in 60 s and 2 GB); see --states for the sizes' limit"),
         "div_sqrt": Doc("the shared divider and square root: iterative (one result bit a cycle, about half "
                         "their area; sig_gen takes longer) or pipelined (one operation a cycle); by default "
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),

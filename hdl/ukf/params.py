@@ -15,7 +15,7 @@ from dataclasses import dataclass, fields
 
 from ..arith.float.format import FloatFormat
 from ..describe import ParamError
-from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation
+from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
 
 __all__ = ["UkfParams", "SIZE_MAX", "default_banks"]
 
@@ -104,6 +104,10 @@ class UkfParams:
             raise ParamError("banks", f"must be an integer in 2..2M = {2 * M}, not {banks!r}")
         object.__setattr__(self, "banks", banks)
         check_generation(self.pes, banks, default_banks)
+        # sig_gen factors the M x M augmented covariance and update the m x m innovation
+        # covariance: at least M^3/6 and m^3/6 multiply-adds (the exact count is checked
+        # against the programs before scheduling, in .steps)
+        check_work(max(M ** 3, self.m ** 3) // 6, self.pes, "states", at_least=True)
         object.__setattr__(self, "format", check_format(self.format))
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:

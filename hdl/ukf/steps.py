@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ..engine.machine import machine
 from ..engine.machine import schedules as engine_schedules
+from ..engine.params import check_work
 from .programs import UkfPrograms, build_ukf
 
 __all__ = ["programs", "machine", "schedules"]
@@ -19,4 +20,5 @@ def programs(params) -> UkfPrograms:
 def schedules(params, progs: UkfPrograms | None = None) -> dict:
     """Step name -> :class:`~kfgen.hdl.linalg.schedule.Schedule`, in CTRL.step's order."""
     progs = progs or programs(params)
+    check_work(sum(prog.fma_count for prog in progs.steps.values()), params.pes, "states")
     return engine_schedules(progs.steps, machine(params))

@@ -20,6 +20,11 @@ REFUSED = [
     (["imm", "--pes", "4", "--banks", "33"], "4 x 33 crossbar"),
     (["ukf", "--pes", "17"], f"--pes: at most {GEN_PES_MAX}, not 17"),
     (["ukf", "--pes", "16", "--banks", "9"], "16 x 9 crossbar"),
+    # sizes: refused from a lower bound on the programs' multiply-adds, before they are built
+    (["ukf", "--states", "255"], "--states: these sizes' programs hold at least 3,208,138 multiply-adds"),
+    (["imm", "--models", "255", "--states", "255"], "--states: these sizes' programs hold at least"),
+    (["imm", "--models", "7", "--states", "9", "--pes", "16", "--banks", "8"],
+     "--pes: these sizes' programs hold at least 10,206 multiply-adds: at P = 16"),
 ]
 
 
@@ -39,9 +44,62 @@ def test_refused_at_once(tmp_path, monkeypatch, argv, says):
     assert time.monotonic() - t0 < 5
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("kfgen: error: --pes: ") and says in lines[0], proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("kfgen: error: --") and says in lines[0], proc.stderr
     assert "60 s or 2 GB" in lines[0]
     assert not any(tmp_path.iterdir())
+
+
+# Sizes whose lower bound passes but whose programs, counted exactly, do not: refused after
+# the programs are built (a tenth of a second) and before the scheduler runs.
+REFUSED_EXACT = [
+    (["ukf", "--states", "13", "--observations", "12", "--process-noise", "13", "--measurement-noise", "12"],
+     "--states: these sizes' programs hold 20,591 multiply-adds, more than generates"),
+    (["imm", "--models", "7", "--states", "9", "--pes", "5"],
+     "--pes: these sizes' programs hold 17,894 multiply-adds: at P = 5 that is more than generates "
+     "(multiply-adds x max(4, P) / 4 must be at most 20,000: P <= 4 for these sizes"),
+]
+
+
+@pytest.mark.parametrize("argv,says", REFUSED_EXACT, ids=[" ".join(a) for a, _ in REFUSED_EXACT])
+def test_refused_before_scheduling(tmp_path, monkeypatch, argv, says):
+    import kfgen.hdl.imm.steps as imm_steps
+    import kfgen.hdl.ukf.steps as ukf_steps
+
+    def no_schedule(*a, **k):
+        raise AssertionError("a refused configuration reached the scheduler")
+
+    monkeypatch.setattr(imm_steps, "engine_schedules", no_schedule)
+    monkeypatch.setattr(ukf_steps, "engine_schedules", no_schedule)
+    proc = kfgen_in_process(*argv, "-o", tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("kfgen: error: --") and says in lines[0], proc.stderr
+    assert not any(tmp_path.iterdir())
+
+
+# (core, sizes) over a grid of small shapes: the lower bound the parameters check before any
+# program is built never exceeds the programs' exact multiply-adds, so it refuses nothing the
+# exact count would let through.
+def _fma(progs):
+    return sum(prog.fma_count for prog in progs.steps.values())
+
+
+@pytest.mark.parametrize("n,m", [(1, 1), (2, 8), (5, 3), (8, 16), (12, 2)])
+def test_ukf_lower_bound_is_below_the_count(n, m):
+    from kfgen.hdl.ukf.steps import programs
+    for nw in (1, n, 2 * n):
+        for nv in (1, m):
+            p = UkfParams(states=n, observations=m, process_noise=nw, measurement_noise=nv)
+            assert max(p.M ** 3, p.m ** 3) // 6 <= _fma(programs(p)), (n, m, nw, nv)
+
+
+@pytest.mark.parametrize("models", [2, 3, 8])
+def test_imm_lower_bound_is_below_the_count(models):
+    from kfgen.hdl.imm.steps import programs
+    for n in (1, 2, 5, 9):
+        for d in (1, 2, 8):
+            p = ImmParams(models=models, states=n, measurements=d)
+            assert 2 * p.R * p.n ** 3 <= _fma(programs(p)), (models, n, d)
 
 
 def test_params_refuse_and_accept_at_the_limits():
@@ -67,6 +125,10 @@ LARGEST = [
     ["ukf", "--pes", "16"],
     ["imm", "--pes", "8"],
     ["imm", "--pes", "16", "--banks", "8"],
+    ["imm", "--pes", "16", "--banks", "8", "--format", "binary64"],
+    # the largest programs, near the multiply-add limit
+    ["ukf", "--states", "12", "--observations", "12", "--process-noise", "12", "--measurement-noise", "12"],
+    ["imm", "--models", "7", "--states", "9", "--pes", "4"],
 ]
 
 
