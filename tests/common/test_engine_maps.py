@@ -22,6 +22,9 @@ from kfgen.hdl.ukf.steps import programs as ukf_programs
 
 from helpers import kfgen_in_process, run_comb
 
+# One worker generates each core once for every test here (the module's outputs fixture).
+pytestmark = pytest.mark.xdist_group("engine_maps")
+
 #: core -> (command-line arguments of a small core, its parameters, map and programs)
 CORES = {
     "ukf": (["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1"],

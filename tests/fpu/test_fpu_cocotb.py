@@ -24,7 +24,7 @@ ALL_OPS = ("add", "sub", "mul", "div", "sqrt", "fma", "i2f", "f2i")
 
 # name: (format, subnormals, {prefix: (op, cycles_per_op)}, random sets per op)
 GROUPS = {
-    "binary32": ("binary32", "ieee", {op: (op, 1) for op in ALL_OPS}, 20_000),
+    "binary32": ("binary32", "ieee", {op: (op, 1) for op in ALL_OPS}, 5_000),
     "binary32_ftz": ("binary32", "ftz", {op: (op, 1) for op in ("add", "mul", "div", "sqrt", "fma")}, 3_000),
     "binary32_iter": ("binary32", "ieee", {"div4": ("div", 4), "sqrt4": ("sqrt", 4), "div26": ("div", 26)}, 2_000),
     "binary16": ("binary16", "ieee", {op: (op, 1) for op in ALL_OPS}, 3_000),
