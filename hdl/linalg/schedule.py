@@ -231,42 +231,93 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
     heap = [(-prio[i], i) for i in range(nops) if npred[i] == 0]
     heapq.heapify(heap)
 
-    def fits(uses):
-        """Whether ``uses`` ((bank, port, cycle), address or _WRITE) agree with each other
-        and with the ports taken: one word read, or one write, per port and cycle."""
-        mine = {}
-        for key, a in uses:
-            have = port_use.get(key, mine.get(key))
-            if have is not None and (have != a or a == _WRITE):
-                return False
-            mine[key] = a
-        return True
+    plans = {}  # op -> [(lane names, port choices, [[(bank, offset or None, address)] per lane])]
+
+    def port_plan(i):
+        """Operation ``i``'s lanes in the order :func:`choose_ports` chooses them: ``a`` and
+        ``b`` together, then ``init``, then the destinations (offset None: at the write)."""
+        rd, groups = lanes[i], []
+        for names in (tuple(k for k in ("a", "b") if k in rd), ("init",) if "init" in rd else (),
+                      tuple(f"dst{k}" for k in range(len(ops[i].dst)))):
+            if names:
+                reads = [[(ops[i].dst[int(n[3:])] % mc.banks, None, _WRITE)] if n.startswith("dst")
+                         else [(a % mc.banks, off, a) for off, a in rd[n]] for n in names]
+                groups.append((names, _PAIRS if len(names) == 2 else _ONE, reads))
+        return groups
 
     def choose_ports(i, t, w):
         """Ports for each lane of operation ``i`` issued at ``t`` and written at ``w``, or
         None. Lanes ``a`` and ``b`` are chosen together (they read in the same cycles), then
         ``init`` (the cycle before) and the destinations (at ``w``, no read cycle of the
-        operation), each independently."""
-        rd = lanes[i]
+        operation), each independently: one word read, or one write, per port and cycle,
+        agreeing with the ports taken and with each other."""
+        plan = plans.get(i)
+        if plan is None:
+            plan = plans[i] = port_plan(i)
         chosen = {}
-        for names in (tuple(k for k in ("a", "b") if k in rd), ("init",) if "init" in rd else (),
-                      tuple(f"dst{k}" for k in range(len(ops[i].dst)))):
-            if not names:
-                continue
-            for ports in (_PAIRS if len(names) == 2 else _ONE):
-                uses = []
-                for name, port in zip(names, ports):
-                    if name.startswith("dst"):
-                        a = ops[i].dst[int(name[3:])]
-                        uses.append(((a % mc.banks, port, w), _WRITE))
+        for names, choices, reads in plan:
+            for ports in choices:
+                mine = {}
+                for lane, port in zip(reads, ports):
+                    for bank, off, a in lane:
+                        key = (bank, port, w if off is None else t + off)
+                        have = port_use.get(key)
+                        if have is None:
+                            have = mine.get(key)
+                        if have is not None and (have != a or a == _WRITE):
+                            break
+                        mine[key] = a
                     else:
-                        uses += [((a % mc.banks, port, t + off), a) for off, a in rd[name]]
-                if fits(uses):
+                        continue
+                    break
+                else:
                     chosen.update(zip(names, ports))
                     break
             else:
                 return None
         return chosen
+
+    lf = mc.fma_latency
+
+    def pe_free_from(pe, t, terms, bound):
+        """The first cycle in [t, bound) at which PE ``pe`` can issue ``terms`` terms, one
+        every ``lf`` cycles, or ``bound`` (the search a cycle at a time finds the same cycle):
+        in each of the ``lf`` residue classes, past the last busy slot of the window at once."""
+        best = bound
+        for r in range(lf):
+            t1 = t + r
+            if t1 >= best:
+                break
+            while t1 < best:
+                j = terms - 1
+                while j >= 0 and (pe, t1 + j * lf) not in pe_busy:
+                    j -= 1
+                if j < 0:
+                    best = t1
+                    break
+                t1 += (j + 1) * lf  # every start before it meets that busy slot
+        return best
+
+    def first_pe(t, terms):
+        """(the first cycle >= ``t`` with a PE free for ``terms`` terms, the lowest such PE)."""
+        best, pe = None, None
+        for p in range(mc.pes):
+            tp = pe_free_from(p, t, terms, float("inf") if best is None else best)
+            if best is None or tp < best:
+                best, pe = tp, p
+                if best == t:
+                    break
+        return best, pe
+
+    def unit_free_from(unit, t, interval):
+        """The first cycle >= ``t`` with ``interval`` free cycles of ``unit`` from it."""
+        while True:
+            k = interval - 1
+            while k >= 0 and (unit, t + k) not in unit_busy:
+                k -= 1
+            if k < 0:
+                return t
+            t += k + 1  # every start up to t + k meets that busy cycle
 
     while heap:
         _, i = heapq.heappop(heap)
@@ -286,17 +337,15 @@ def schedule(prog: Program, mc: Machine) -> Schedule:
             if op.unit == "fma":
                 t = max(t, min(pe_floor[p] for p in range(mc.pes)))
             while True:
+                # the first cycle from t with a PE (the lowest) or the unit free, then its ports
                 if op.unit == "fma":
-                    pe = next((p for p in range(mc.pes)
-                               if all((p, t + o) not in pe_busy for o in offs)), None)
-                    ok = pe is not None
+                    t, pe = first_pe(t, len(offs))
                 else:
                     pe = 0
-                    ok = all((op.unit, t + k) not in unit_busy for k in range(mc.interval(op.unit)))
-                if ok:
-                    ports = choose_ports(i, t, t + woff)
-                    if ports is not None:
-                        break
+                    t = unit_free_from(op.unit, t, mc.interval(op.unit))
+                ports = choose_ports(i, t, t + woff)
+                if ports is not None:
+                    break
                 t += 1
             if op.unit == "fma":
                 for o in offs:
