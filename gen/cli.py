@@ -146,6 +146,12 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
                        + (f" This core writes: {_writes(core)}." if resolved is not None else ""), 95, break_on_hyphens=False, break_long_words=False))
         g = p.add_argument_group("parameters")
         for field in defaults:
+            if field == "app" and core.app is not None:
+                continue  # --app, below: it also sets the sizes the application fixes
+            if defaults[field] is False:
+                g.add_argument(option(field), dest=field, action="store_const", const=True, default=None,
+                               help=_help(docs[field], "off; this option turns it on"))
+                continue
             if _switch(defaults[field]):
                 g.add_argument("--no-" + option(field)[2:], dest=field, action="store_const", const=False,
                                default=None, help=_help(docs[field], "on; this option turns it off"))
@@ -158,7 +164,8 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
             p.add_argument("--app", metavar="MODULE:CLASS",
                            help="take the parameters an application fixes (for the ukf: n, m, nw, nv and W0 of a "
                                 "kfgen.sim.ukf.app.UkfApplication subclass) from MODULE:CLASS or FILE.py:CLASS; "
-                                "--config and the options override them")
+                                "--config and the options override them"
+                                + ("; " + _help(docs["app"], "none") if "app" in defaults else ""))
         v = p.add_argument_group("vendor flow (TOP.core and the constraints; the Verilog does not depend on them)")
         flow = FlowOptions()
         v.add_argument("--clock-mhz", metavar="MHZ", default=None,
@@ -237,13 +244,18 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
             raise UsageError("--app", _one_line(exc)) from None
         for k, v in from_app.items():
             values[k], source[k] = v, f"--app {spec}"
+        if "app" in defaults:
+            values["app"], source["app"] = spec, f"--app {spec}"
     if args.config is not None:
         for k, v in _read_config(args.config, defaults).items():
             values[k], source[k] = v, args.config
     for field in defaults:
-        text = getattr(args, field)
+        if field == "app" and core.app is not None:
+            continue  # --app, set above
+        text = getattr(args, field, None)
         if text is not None:
-            values[field] = text if _switch(defaults[field]) else _convert(text, defaults[field])
+            values[field] = text if _switch(defaults[field]) or defaults[field] is False \
+                else _convert(text, defaults[field])
             source.pop(field, None)
     try:
         return params_cls(**values)

@@ -55,6 +55,8 @@ def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: 
             continue
         if f.default is True:  # a switch: --no-<name>
             parts.append("--no-" + option(f.name)[2:])
+        elif f.default is False:  # a switch: --<name>
+            parts.append(option(f.name))
         else:
             parts += [option(f.name), str(value)]
     if flow is not None:

@@ -62,7 +62,7 @@ class Backend(wiring.Component):
         The engine of ``params``' step programs (its memory is the buffer, from word 0).
     rmap : RegisterMap
         The core's map. ``CTRL.step`` names the
-        engine's steps in order; without that field the engine has one step. Every ``ro``
+        engine's steps in order, with consecutive values from any first one; without that field the engine has one step. Every ``ro``
         memory answers writes with SLVERR.
 
     Members
@@ -82,6 +82,9 @@ class Backend(wiring.Component):
         if self._f_step is not None:
             if engine.step_names != tuple(v.name for v in self._f_step.values):
                 raise ValueError("CTRL.step's values must name the engine's steps in its order")
+            values = [v.value for v in self._f_step.values]
+            if values != list(range(values[0], values[0] + len(values))):
+                raise ValueError("CTRL.step's values must be consecutive")
         elif len(engine.step_names) != 1:
             raise ValueError("an engine of several steps needs a CTRL.step field")
         super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, BUS_READ_LATENCY)),
@@ -145,8 +148,14 @@ class Backend(wiring.Component):
             m.d.comb += [eng.mem_we.eq(buf_we), eng.mem_wdata.eq(wd[:width])]
 
         # control: start (the step in the same write), soft reset
-        known = new_step < len(eng.step_names)
-        m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step), eng.halt.eq(do_reset)]
+        first = f_step.values[0].value if f_step else 0  # CTRL.step of the engine's step 0
+        if first:
+            known = (new_step >= first) & (new_step < first + len(eng.step_names))
+            m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step - first),
+                         eng.halt.eq(do_reset)]
+        else:
+            known = new_step < len(eng.step_names)
+            m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step), eng.halt.eq(do_reset)]
         with m.If(byte0 & is_reg["CTRL"] & ~refused_start):
             m.d.sync += step.eq(new_step)
 

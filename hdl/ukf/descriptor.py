@@ -6,7 +6,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
 from .params import SIZE_MAX, UkfParams
-from .regmap import STEPS
+from .regmap import steps
 
 __all__ = ["CORE"]
 
@@ -28,6 +28,12 @@ def _docs() -> dict[str, Doc]:
                      "crossbar; by default 2P up to P = 2, P from 3 to 8, 8 above", "", "an integer in 2..2M"),
         "format": engine_docs()["format"],
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
+        "app": Doc("the application the core is sized for (its n, m, nw, nv and W0) and, on an on_chip core, the one "
+                   "whose f and h are compiled into it", "", "MODULE:CLASS or FILE.py:CLASS of a "
+                   "kfgen.sim.ukf.app.UkfApplication subclass"),
+        "on_chip": Doc("compile the application's f and h into the engine: one start (CTRL.step = iteration) "
+                       "runs the whole iteration, reading z and u (docs/applications.md says what traces)", "",
+                       "a switch; needs --app"),
         **{k: v for k, v in engine_docs().items() if k != "format"},
     }
 
@@ -41,7 +47,7 @@ def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
         "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
-                        for v in STEPS},
+                        for v in steps(params)},
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,
                   "N": params.N},
     }

@@ -60,6 +60,14 @@ class UkfParams:
         ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
     w0 : float
         Weight W_0 of the centre sigma point, 0 <= W0 < 1 (eq. 5).
+    app : str or None
+        The application (``module:Class`` or ``file.py:Class``) the core is sized for; with
+        ``on_chip`` its f and h are compiled into the core (:mod:`kfgen.hdl.ukf.models`).
+    on_chip : bool
+        Whether the core runs the whole iteration, f and h included: one step, ``iteration``
+        (CTRL.step = 3), reading ``z`` and ``u`` and leaving the estimate in ``x`` and ``P``.
+        Needs ``app``. Off (the default), the core has the chapter's three steps and software
+        applies f and h between them.
     irq : bool
         Whether the core has an ``irq`` output (and an IRQ_ENABLE register).
     address_width : int or None
@@ -84,6 +92,8 @@ class UkfParams:
     banks: int | None = None
     format: str = "binary32"
     w0: float = 0.0
+    app: str | None = None
+    on_chip: bool = False
     irq: bool = True
     address_width: int | None = None
     name: str = "ukf"
@@ -112,6 +122,16 @@ class UkfParams:
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:
             raise ParamError("w0", f"must be a number with 0 <= W0 < 1, not {self.w0!r}")
+        if not isinstance(self.on_chip, bool):
+            raise ParamError("on_chip", f"must be true or false, not {self.on_chip!r}")
+        if self.app is not None and (not isinstance(self.app, str) or not self.app):
+            raise ParamError("app", f"must be MODULE:CLASS or FILE.py:CLASS, not {self.app!r}")
+        if self.on_chip:
+            if self.app is None:
+                raise ParamError("on_chip", "compiles an application's f and h into the core: give --app MODULE:CLASS")
+            models = self.models  # loads and traces the application, or refuses it
+            check_work(max(M ** 3, self.m ** 3) // 6 + self.N * models.fma_count, self.pes, "states",
+                       at_least=True)
         check_bus(self)
         from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)
@@ -141,6 +161,20 @@ class UkfParams:
     def N(self) -> int:
         """Number of sigma points of the spherical simplex set (M + 2)."""
         return self.M + 2
+
+    @property
+    def models(self):
+        """The application's traced f and h (:class:`~kfgen.hdl.ukf.models.UkfModels`), for
+        an ``on_chip`` core; ``None`` otherwise."""
+        if not self.on_chip:
+            return None
+        from .models import compile_models
+        return compile_models(self.app, (self.n, self.nw, self.nv, self.m))
+
+    @property
+    def nu(self) -> int:
+        """Length of the control input u (0 without one, and for a core without ``on_chip``)."""
+        return self.models.nu if self.on_chip else 0
 
     @property
     def fmt(self) -> FloatFormat:

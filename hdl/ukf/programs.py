@@ -31,7 +31,7 @@ from math import isqrt
 from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
-from ..linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
+from ..linalg.program import Copy, Div, Dot, Exp, Layout, Max, Program, Sqrt
 from .params import UkfParams
 
 __all__ = ["UkfPrograms", "build_ukf", "simplex_rows"]
@@ -75,8 +75,14 @@ class UkfPrograms:
     predict: Program
     update: Program
 
+    iteration: Program | None = None
+
     @property
     def steps(self):
+        """Step name -> program, in CTRL.step's order: the one ``iteration`` of a core with f
+        and h on chip, else sig_gen, predict and update."""
+        if self.iteration is not None:
+            return {"iteration": self.iteration}
         return {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
 
 
@@ -97,6 +103,8 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     chif = lay.add("sigma_points_f", N, n, "bus")
     chih = lay.add("sigma_points_h", N, m, "bus")
     z = lay.add("z", m, 1, "bus")
+    models = params.models
+    u = lay.add("u", models.nu, 1, "bus") if models is not None and models.nu else None
     # Work. P^a's blocks share one packed triangle (F, then L below the diagonal; D; s).
     tri = [(i, j) for b0, b1 in _blocks(params) for i in range(b0, b1) for j in range(b0, i)]
     F = lay.add("F", len(tri))
@@ -259,4 +267,60 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
             dst = (P(i, j),) if i == j else (P(i, j), P(j, i))
             up.emit(Dot(dst, P(i, j), [(Pxz(i, l), K(j, l), True) for l in range(m - 1, -1, -1)],
                         "finite"))
-    return UkfPrograms(params, fmt, lay, sg, pr, up)
+    if models is None:
+        return UkfPrograms(params, fmt, lay, sg, pr, up)
+    return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u))
+
+
+_OPS = {"div": Div, "sqrt": Sqrt, "exp": Exp, "max": Max, "copy": Copy}
+
+
+def _iteration(params, models, lay, sg, pr, up, u) -> Program:
+    """One whole iteration: sig_gen, f on every sigma point into sigma_points_f, predict, h
+    on every moved point into sigma_points_h, update (:mod:`.models`). Each point's
+    temporaries have words of their own, so the points' f (and h) overlap; those that read no
+    point are computed once."""
+    fmt, n, nw, N = params.fmt, params.n, params.nw, params.N
+    chi, chif, chih = lay["sigma_points"], lay["sigma_points_f"], lay["sigma_points_h"]
+    consts = list(dict.fromkeys(models.f.consts + models.h.consts))
+    cw = lay.const("model_consts", [_word(fmt, Fraction(c)) for c in consts]) if consts else None
+    caddr = {c: cw(0, i) for i, c in enumerate(consts)}
+    it = Program("iteration", lay, fmt)
+    it.ops.extend(sg.ops)
+
+    def apply(model, label, inputs, out):
+        """``model`` on every point: ``inputs(i)`` maps an input word to its address."""
+        shared = sorted(model.shared)
+        own = [t for t in range(model.temps) if t not in model.shared]
+        ts = lay.add(f"{label}_shared", len(shared)) if shared else None
+        tp = lay.add(f"{label}_temps", N, len(own)) if own else None
+        sidx, oidx = {t: k for k, t in enumerate(shared)}, {t: k for k, t in enumerate(own)}
+
+        def emit(kind, dst, *operands):
+            if kind == "dot":
+                it.emit(Dot(dst, operands[0], operands[1]))
+            else:
+                it.emit(_OPS[kind](dst, *operands))
+
+        for i in range(N):
+            def addr(w, i=i):
+                if w[0] == "const":
+                    return caddr[w[1]]
+                if w[0] == "out":
+                    return out(i, w[1])
+                if w[0] == "tmp":
+                    return ts(sidx[w[1]]) if w[1] in sidx else tp(i, oidx[w[1]])
+                return inputs(i, w[1], w[2])
+            model.instantiate(emit, addr, shared_done=i > 0)
+
+    def f_inputs(i, name, k):
+        return {"x": lambda: chi(i, k), "w": lambda: chi(i, n + k), "u": lambda: u(k)}[name]()
+
+    def h_inputs(i, name, k):
+        return {"x": lambda: chif(i, k), "v": lambda: chi(i, n + nw + k)}[name]()
+
+    apply(models.f, "f", f_inputs, chif)
+    it.ops.extend(pr.ops)
+    apply(models.h, "h", h_inputs, chih)
+    it.ops.extend(up.ops)
+    return it

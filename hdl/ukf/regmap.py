@@ -20,12 +20,14 @@ from __future__ import annotations
 
 from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
 
-__all__ = ["ukf_map", "CORE_ID", "MAP_VERSION", "STEPS"]
+__all__ = ["ukf_map", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "STEPS", "ON_CHIP_STEPS"]
 
 #: ID.core of the UKF (ASCII 'U').
 CORE_ID = 0x55
 #: ID.version: raised whenever an offset, field or meaning in this map changes.
 MAP_VERSION = 1
+#: ID.version of a core with f and h on chip (``on_chip``): one step, ``iteration``, and ``u``.
+MAP_VERSION_ON_CHIP = 2
 
 
 #: The steps CTRL.step names, and the manifest's ``cycles`` keys.
@@ -34,6 +36,19 @@ STEPS = (
     Value("predict", 1, "x, P <- mean and covariance of sigma_points_f (eqs. 10-11)"),
     Value("update", 2, "x, P <- the update by z and sigma_points_h (eqs. 13-19)"),
 )
+
+
+#: The one step of a core with f and h on chip (``on_chip``); CTRL.step 0..2 are reserved
+#: there (start does nothing).
+ON_CHIP_STEPS = (
+    Value("iteration", 3, "one whole iteration: sig_gen, f on every point, predict, h on every moved point "
+                          "and update, reading z and u; x, P <- the estimate"),
+)
+
+
+def steps(params) -> tuple[Value, ...]:
+    """The steps CTRL.step names for ``params``: :data:`ON_CHIP_STEPS` or :data:`STEPS`."""
+    return ON_CHIP_STEPS if params.on_chip else STEPS
 
 
 def _registers(params) -> tuple[Register, ...]:
@@ -49,7 +64,7 @@ def _registers(params) -> tuple[Register, ...]:
         Register("ID", 0x0, 64, "What the core is and how it was generated, so software can discover its "
                  "configuration. Two bus words, low word first.", (
                      Field("core", 0, 8, "ro", f"core identifier, {CORE_ID:#04x} ('U') for the UKF", reset=CORE_ID),
-                     Field("version", 8, 4, "ro", "version of this register and memory map", reset=MAP_VERSION),
+                     Field("version", 8, 4, "ro", "version of this register and memory map", reset=MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION),
                      Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
                      Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
                            reset=fmt.frac_bits),
@@ -64,8 +79,9 @@ def _registers(params) -> tuple[Register, ...]:
                                         "while busy (STATUS.err_busy)"),
             Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running step stops, the core is idle, "
                                         "STATUS is cleared; the buffer is kept"),
-            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)",
-                  values=STEPS),
+            Field("step", 4, 2, "rw", "the step that start runs; 0..2 are reserved (start does nothing)"
+                  if params.on_chip else "the step that start runs; 3 is reserved (start does nothing)",
+                  values=steps(params)),
         )),
         *status_registers(events, "step", params.irq),
     ]
@@ -77,6 +93,8 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
     (programs); role one of REGION_ROLES."""
     n, m, nw, nv, M, N = params.n, params.m, params.nw, params.nv, params.M, params.N
     column = "a column: element i in row i"
+    if params.on_chip:
+        return _on_chip_regions(params, column)
     return (
         ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
          f"{column} (n = {n})"),
@@ -96,6 +114,27 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
          f"N points of m elements, h(chi_i^-) in row i (N = {N}, m = {m})"),
         ("z", m, 1, "rw", "input", "measurement z", f"{column} (m = {m})"),
     )
+
+
+def _on_chip_regions(params, column):
+    """The regions of a core with f and h on chip: the same, but the core writes the moved
+    points, and the control input ``u`` follows ``z`` (when nu > 0)."""
+    nu = params.nu
+    regions = []
+    for name, rows, cols, access, role, desc, layout in _regions(_off_chip(params)):
+        if name == "sigma_points_f":
+            access, role, desc = "ro", "output", "f(chi_i), point by point (written by iteration: f on chip)"
+        elif name == "sigma_points_h":
+            access, role, desc = "ro", "output", "h(chi_i^-), point by point (written by iteration: h on chip)"
+        regions.append((name, rows, cols, access, role, desc, layout))
+    if nu:
+        regions.append(("u", nu, 1, "rw", "input", "control input u of the iteration's f", f"{column} (nu = {nu})"))
+    return tuple(regions)
+
+
+def _off_chip(params):
+    from dataclasses import replace
+    return replace(params, on_chip=False)
 
 
 def ukf_map(params) -> RegisterMap:

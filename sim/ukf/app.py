@@ -80,6 +80,9 @@ class UkfApplication:
     n, nw, nv, m : int
         Lengths of the state x, the process noise w, the measurement noise v and the
         observation z (M = n + nw + nv is the augmented state's length, eq. 3).
+    nu : int
+        Length of the control input u that f takes (0, the default: none). A core with f
+        and h on chip (``kfgen ukf --app ... --on-chip``) has a buffer region ``u`` of nu words.
     W0 : float
         Weight of the centre sigma point, 0 <= W0 < 1 (eq. 5); 0 by default.
     dt : float
@@ -98,6 +101,7 @@ class UkfApplication:
     nw: int
     nv: int
     m: int
+    nu: int = 0
     W0: float = 0.0
     dt: float
     x0 = P0 = Q = R = None
@@ -150,6 +154,9 @@ class UkfApplication:
             v = getattr(self, key, None)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise AppError(f"{name}.{key} must be a positive integer, not {v!r}")
+        nu = self.nu
+        if isinstance(nu, bool) or not isinstance(nu, (int, np.integer)) or nu < 0:
+            raise AppError(f"{name}.nu must be an integer >= 0 (the control input's length), not {nu!r}")
         w0 = self.W0
         if isinstance(w0, bool) or not isinstance(w0, (int, float)) or not 0 <= w0 < 1:
             raise AppError(f"{name}.W0 must be a number with 0 <= W0 < 1, not {w0!r}")
@@ -307,3 +314,12 @@ def load_app(spec: str) -> UkfApplication:
         raise AppError(f"{spec}() is a {type(app).__name__}, not a UkfApplication (kfgen.sim.ukf.app)")
     app.check()
     return app
+
+
+def _register() -> None:
+    # hdl imports neither gen nor sim: it is handed the loader for ``kfgen ukf --on-chip``.
+    from kfgen.hdl.ukf.models import set_loader
+    set_loader(load_app)
+
+
+_register()

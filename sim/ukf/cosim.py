@@ -57,6 +57,13 @@ from .software import StepError, initial_words, iteration
 CLOCK_NS = 10
 
 
+def steps_of(manifest) -> list[str]:
+    """The core's steps in CTRL.step's order."""
+    ctrl = next(r for r in manifest["registers"] if r["name"] == "CTRL")
+    values = next(f for f in ctrl["fields"] if f["name"] == "step")["values"]
+    return sorted(values, key=values.get)
+
+
 class GoldenBus:
     """The golden model as the bus sees it: the manifest's map over the model's memory.
 
@@ -124,7 +131,7 @@ class CheckedBus:
         regs = {r["name"]: r for r in manifest["registers"]}
         self.status_addr = regs["STATUS"]["offset"]
         self.status_bits = {f["name"]: f["lsb"] for f in regs["STATUS"]["fields"]}
-        self.cycles = {"transfer": 0, "sig_gen": 0, "predict": 0, "update": 0}
+        self.cycles = {"transfer": 0, **{step: 0 for step in steps_of(manifest)}}
         self.words_moved = 0
         self.ctrl_addr = regs["CTRL"]["offset"]
         self.running = None  # (step, cycle of its start) from CTRL.start to the STATUS clear
@@ -307,16 +314,17 @@ class Run:
         self.per_iteration.append({key: self.bus.cycles[key] - before[key] for key in before})
 
     def finish(self, wall):
-        cyc = np.array([[it[k] for k in ("sig_gen", "predict", "update", "transfer")] for it in self.per_iteration])
+        columns = [*steps_of(self.manifest), "transfer"]
+        cyc = np.array([[it[k] for k in columns] for it in self.per_iteration])
         total = self.bus.now()
+        each = ", ".join(f"{k} {c:.0f}" for k, c in zip(columns, np.rint(cyc.mean(axis=0))))
         self.dut._log.info("%d iterations, %d cycles (%.0f cycles/s of simulation, %.1f s); per iteration: "
-                           "sig_gen %d, predict %d, update %d, transfers %d cycles (%d words moved in all)",
-                           self.steps, total, total / wall, wall, *np.rint(cyc.mean(axis=0)), self.bus.words_moved)
+                           "%s cycles (%d words moved in all)", self.steps, total, total / wall, wall, each,
+                           self.bus.words_moved)
         out = os.environ.get("KFGEN_COSIM_OUT")
         if out:
             np.savez(out, estimates=self.estimates, truth=self.scenario.truth, t=self.scenario.t,
-                     cycles=cyc, cycles_columns=np.array(["sig_gen", "predict", "update", "transfer"]),
-                     wall_s=wall, sim_cycles=total)
+                     cycles=cyc, cycles_columns=np.array(columns), wall_s=wall, sim_cycles=total)
 
 
 @cocotb.test()
@@ -330,7 +338,7 @@ async def python_processor(dut):
     for k, (u, z) in enumerate(r.scenario.inputs()):
         before = dict(r.bus.cycles)
         try:
-            await iteration(r.io, r.app, r.fmt, u, z)
+            await iteration(r.io, r.app, r.fmt, u, z, r.bus.gold.params.on_chip)
         except StepError as exc:
             r.fault(exc.at(k))
         r.record(k, await r.io.read("x"), before)

@@ -161,6 +161,9 @@ def main(argv=None) -> int:
                     help="AXI bursts or single beats (default burst)")
     ap.add_argument("--wait", choices=("irq", "poll"), default="irq",
                     help="wait for irq or poll STATUS (default irq)")
+    ap.add_argument("--on-chip", action="store_true",
+                    help="compile the application's f and h into the core: one start per iteration "
+                         "(software writes u and z only; --processor python)")
     ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
     ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
     args = ap.parse_args(argv)
@@ -168,7 +171,11 @@ def main(argv=None) -> int:
         if args.steps < 1:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
         app = load_app(args.app)
-        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app")
+        on_chip = {"app": args.app, "on_chip": True} if args.on_chip else {}
+        if args.on_chip and args.processor == "c":
+            raise ValueError("--processor c: the C driver runs the three steps; an --on-chip core is driven "
+                             "by --processor python")
+        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app", **on_chip)
         if args.processor == "c" and params.format not in C_FORMATS:
             raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "
                              f"not {params.format} (use --processor python)")
@@ -191,13 +198,14 @@ def main(argv=None) -> int:
         return 3
     with np.load(npz) as d:
         cycles, est, wall = d["cycles"], d["estimates"], float(d["wall_s"])
+        columns = [str(c) for c in d["cycles_columns"]]
         total = int(d["sim_cycles"])
     ref = run_reference(app, scenario)
     mean = cycles.mean(axis=0)
     print(f"{args.steps} iterations of {args.app} on {params.name} (P = {params.pes}, {params.format}), "
           f"{args.processor} processor, {args.beats} transfers, {args.wait}: every word equal to the golden model's")
-    print(f"cycles per iteration: sig_gen {mean[0]:.0f}, predict {mean[1]:.0f}, update {mean[2]:.0f}, "
-          f"transfers {mean[3]:.0f}; total {mean.sum():.0f}")
+    each = ", ".join(f"{'transfers' if k == 'transfer' else k} {c:.0f}" for k, c in zip(columns, mean))
+    print(f"cycles per iteration: {each}; total {mean.sum():.0f}")
     print(f"simulation: {total} cycles in {wall:.1f} s ({total / wall:,.0f} cycles/s)")
     print(f"largest |x - float64 reference| over the run: {np.max(np.abs(est - ref)):.3g}")
     print(f"files: {rtl} (cosim.npz, runs/cosim.log{', runs/cosim.fst' if args.waves else ''})")

@@ -83,14 +83,22 @@ async def _step(io: CoreIO, name: str) -> None:
         raise StepError(name, "err_pivot" if st.pivot else "err_nan")
 
 
-async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z) -> None:
-    """One filter iteration with control input ``u`` and measurement ``z`` (steps 1-5 above).
+async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z, on_chip: bool = False) -> None:
+    """One filter iteration with control input ``u`` and measurement ``z`` (steps 1-5 above);
+    on a core with f and h on chip (``on_chip``), software writes ``u`` (when the application
+    has one) and ``z`` and starts the one step ``iteration``.
 
     Raises
     ------
     StepError
         When a step reports a covariance that is not positive definite or a NaN.
     """
+    if on_chip:
+        if getattr(app, "nu", 0):
+            await io.write("u", to_words(fmt, np.ravel(np.asarray(u, dtype=np.float64))))
+        await io.write("z", to_words(fmt, np.ravel(np.asarray(z, dtype=np.float64))))
+        await _step(io, "iteration")
+        return
     n, nw, M = app.n, app.nw, app.n + app.nw + app.nv
     await _step(io, "sig_gen")
     chi = np.array(from_words(fmt, await io.read("sigma_points"))).reshape(-1, M)

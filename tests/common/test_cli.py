@@ -231,8 +231,10 @@ def test_help_lists_every_parameter(_written):
             switch = f.default is True  # a switch: --no-<name>
             assert ("--no-" + option(f.name)[2:] if switch else option(f.name)) in text, f.name
             # None: worked out from the other parameters; the help gives the number for their defaults
-            shown = (f"{getattr(core.params(), f.name)} (for the other options' defaults)" if f.default is None
-                     else "on" if switch else f.default)
+            # (an application has none); False: a switch that is off
+            shown = ("none" if f.name == "app" else
+                     f"{getattr(core.params(), f.name)} (for the other options' defaults)" if f.default is None
+                     else "on" if switch else "off" if f.default is False else f.default)
             assert f"default {shown}" in text, f.name
             doc = core.docs()[f.name]
             assert doc.meaning in text and doc.allowed in text and f"[{doc.unit}]" * bool(doc.unit) in text

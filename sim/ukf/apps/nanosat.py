@@ -135,6 +135,7 @@ class Nanosat(UkfApplication):
     """
 
     n, nw, nv, m = 7, 7, 6, 6
+    nu = 3  #: the gyro's reading, rad/s
     W0 = 0.0
     eta_q = 1e-6  #: covariance of the quaternion-rate noise (section 4.5)
     eta_d = 1e-2  #: covariance of the bias drift rate, (rad/s^2)^2 (section 4.5)
