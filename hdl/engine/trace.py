@@ -92,7 +92,6 @@ class T:
     Equal keys are the same value, computed once."""
 
     __slots__ = ("terms", "c0")
-    __array_priority__ = 1000
 
     def __init__(self, terms=(), c0=0.0):
         self.terms = tuple(terms)

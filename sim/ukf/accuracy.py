@@ -32,19 +32,23 @@ def run_reference(app: UkfApplication, sc: Scenario) -> np.ndarray:
     return out
 
 
-def run_golden(app: UkfApplication, sc: Scenario, format: str = "binary32", pes: int = 1) -> np.ndarray:
-    """The bit-exact model of the core sized for ``app`` in ``format`` over ``sc``.
+def run_golden(app: UkfApplication, sc: Scenario, format: str = "binary32", pes: int = 1,
+               on_chip: str | None = None) -> np.ndarray:
+    """The bit-exact model of the core sized for ``app`` in ``format`` over ``sc``; with
+    ``on_chip`` (the application's spec, ``module:Class``) the core with f and h compiled
+    into it (``kfgen ukf --app SPEC --on-chip``), one ``iteration`` step per measurement.
 
     Raises
     ------
     kfgen.sim.ukf.software.StepError
         When a step raises ``err_pivot`` or ``err_nan``.
     """
-    core = GoldenCore(UkfParams(**app.core_parameters(), format=format, pes=pes))
+    chip = {} if on_chip is None else {"app": on_chip, "on_chip": True}
+    core = GoldenCore(UkfParams(**app.core_parameters(), format=format, pes=pes, **chip))
     for name, words in initial_words(app, core.fmt).items():
         complete(core.write(name, words))
     out = np.empty((len(sc.z), app.n))
     for k, (u, z) in enumerate(sc.inputs()):
-        complete(iteration(core, app, core.fmt, u, z))
+        complete(iteration(core, app, core.fmt, u, z, on_chip is not None))
         out[k] = from_words(core.fmt, complete(core.read("x")))
     return out

