@@ -91,7 +91,14 @@ void @TOP@_write(@TOP@_dev_t *dev, uint32_t offset, const double *src, uint32_t 
 void @TOP@_read(@TOP@_dev_t *dev, uint32_t offset, double *dst, uint32_t n);
 int @TOP@_run(@TOP@_dev_t *dev, uint32_t step);
 int @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *Q, const double *R);
+#ifdef @T@__CTRL__STEP__ITERATION
+/* A core with f and h on chip (kfgen ukf --on-chip): one iteration is one start. u is the
+ * control input (nu values; ignored, and may be NULL, when the application has none). */
+int @TOP@_iterate(@TOP@_dev_t *dev, const double *u, const double *z);
+#else
+/* One iteration of the chapter's three steps, f and h applied here between them. */
 int @TOP@_iterate(@TOP@_dev_t *dev, @TOP@_f_t f, @TOP@_h_t h, void *ctx, const double *z);
+#endif
 void @TOP@_estimate(@TOP@_dev_t *dev, double *x, double *P);
 
 #ifdef __cplusplus
@@ -266,6 +273,18 @@ int @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double 
     return 0;
 }
 
+#ifdef @T@__CTRL__STEP__ITERATION
+int @TOP@_iterate(@TOP@_dev_t *dev, const double *u, const double *z)
+{
+#ifdef @T@__U_OFFSET
+    @TOP@_write(dev, @T@__U_OFFSET, u, @T@__U_ROWS);
+#else
+    (void)u;
+#endif
+    @TOP@_write(dev, @T@__Z_OFFSET, z, @T@_M);
+    return @TOP@_run(dev, @T@__CTRL__STEP__ITERATION);
+}
+#else
 int @TOP@_iterate(@TOP@_dev_t *dev, @TOP@_f_t f, @TOP@_h_t h, void *ctx, const double *z)
 {
     static double chi[@T@_POINTS * @T@_MA];
@@ -290,6 +309,7 @@ int @TOP@_iterate(@TOP@_dev_t *dev, @TOP@_f_t f, @TOP@_h_t h, void *ctx, const d
     @TOP@_write(dev, @T@__Z_OFFSET, z, @T@_M);
     return @TOP@_run(dev, @T@__CTRL__STEP__UPDATE);
 }
+#endif
 
 void @TOP@_estimate(@TOP@_dev_t *dev, double *x, double *P)
 {

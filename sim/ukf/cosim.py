@@ -441,7 +441,11 @@ async def c_processor(dut):
         before = dict(bus.cycles)
         state["u"] = u
         z_arr = arr(z)
-        err = await bridge(iterate)(ctypes.byref(dev), models[0], models[1], None, z_arr[1])
+        if bus.gold.params.on_chip:  # f and h in the core: TOP_iterate(dev, u, z)
+            u_arr = arr(u if len(u) else [0.0])
+            err = await bridge(iterate)(ctypes.byref(dev), u_arr[1], z_arr[1])
+        else:
+            err = await bridge(iterate)(ctypes.byref(dev), models[0], models[1], None, z_arr[1])
         check()
         if err:  # the STATUS bits of the step that failed (TOP_run's return)
             r.fault(StepError(bus.last_step, "err_pivot" if err >> bus.status_bits["err_pivot"] & 1 else "err_nan", k))

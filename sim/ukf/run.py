@@ -163,7 +163,7 @@ def main(argv=None) -> int:
                     help="wait for irq or poll STATUS (default irq)")
     ap.add_argument("--on-chip", action="store_true",
                     help="compile the application's f and h into the core: one start per iteration "
-                         "(software writes u and z only; --processor python)")
+                         "(software writes u and z only)")
     ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
     ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
     args = ap.parse_args(argv)
@@ -172,9 +172,6 @@ def main(argv=None) -> int:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
         app = load_app(args.app)
         on_chip = {"app": args.app, "on_chip": True} if args.on_chip else {}
-        if args.on_chip and args.processor == "c":
-            raise ValueError("--processor c: the C driver runs the three steps; an --on-chip core is driven "
-                             "by --processor python")
         params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app", **on_chip)
         if args.processor == "c" and params.format not in C_FORMATS:
             raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "

@@ -112,6 +112,23 @@ def test_rtl_iterations(generated):
     run_ukf(model, generated, "ukf_oc", ["on_chip_iterations"], "on_chip", {"KFGEN_TB_ITERATIONS": "3"})
 
 
+@pytest.mark.verilator
+@pytest.mark.xdist_group("ukf_on_chip")
+def test_c_processor(generated, tmp_path):
+    """The generated C driver's TOP_iterate(dev, u, z) on the same build: every word against
+    the golden model, and the estimates those of the golden model's on-chip core."""
+    from kfgen.sim.ukf.run import build_driver, run_cosim
+    model = build_ukf_core(generated, "ukf_oc", VERILATOR_CACHE)
+    driver = build_driver(generated, "ukf_oc", tmp_path)
+    npz = tmp_path / "c.npz"
+    run_cosim(model, generated, "ukf_oc", "c_processor", "c_on_chip", NANOSAT, 3, seed=2, out=npz, driver=driver)
+    app = Nanosat()
+    want = run_golden(app, checked_scenario(app, 3, 2), on_chip=NANOSAT)
+    with np.load(npz) as d:
+        assert list(d["cycles_columns"]) == ["iteration", "transfer"]
+        assert np.array_equal(d["estimates"], want)
+
+
 UNTRACEABLE = '''
 import numpy as np
 from kfgen.sim.ukf.app import UkfApplication
@@ -195,3 +212,15 @@ def test_ukf_page_table_is_the_schedules():
         (sched,) = schedules(p, progs).values()
         assert (chip, fmas) == (sched.cycles + OVERHEAD, progs.iteration.fma_count), row
         assert steps == sum(s.cycles + OVERHEAD for s in schedules(UkfParams(pes=pes)).values()), row
+
+
+def test_c_driver_compiles_bare_metal(generated, tmp_path):
+    """The on-chip core's driver (TOP_iterate(dev, u, z)) as C99 with every warning an error,
+    for a bare-metal processor."""
+    import subprocess
+    proc = subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-c",
+                           str(generated / "ukf_oc_driver.c"), "-o", str(tmp_path / "d.o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "int ukf_oc_iterate(ukf_oc_dev_t *dev, const double *u, const double *z);" in \
+        (generated / "ukf_oc_driver.h").read_text()
