@@ -37,7 +37,9 @@ generated ``TOP.md``):
 
 from __future__ import annotations
 
-from amaranth.hdl import Cat, Module, Mux, Signal
+from dataclasses import dataclass
+
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -46,9 +48,56 @@ from ..linalg.banks import BUS_READ_LATENCY
 from ..linalg.engine import Engine
 from .regmap import BUS_ID_WIDTH
 
-__all__ = ["EngineCore", "Backend"]
+__all__ = ["EngineCore", "Backend", "StreamSpec"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
+
+
+@dataclass(frozen=True)
+class StreamSpec:
+    """AXI4-Stream ports of an engine core, for a design without a processor.
+
+    One ``s_axis`` transfer carries the elements written to the buffer from element address
+    ``in_base`` on (``in_names`` name them, element 0 in the lowest bits), each in a field
+    of ``field_bits`` (the format's width rounded up to whole bytes, the rest zero). Taking
+    it, the core writes them (one a cycle), starts step ``step`` (the engine's index) and,
+    when the step is done, reads the elements at ``out_addrs`` into one ``m_axis`` transfer
+    (``out_names``, the same field layout), ``m_axis_tuser`` = {err_nan, err_pivot} of that
+    step. ``s_axis_tready`` is low from a transfer until its result has gone out, and while
+    a step started from the bus runs."""
+
+    in_base: int
+    in_names: tuple
+    out_addrs: tuple
+    out_names: tuple
+    field_bits: int
+    step: int = 0
+
+    @property
+    def in_width(self) -> int:
+        return self.field_bits * len(self.in_names)
+
+    @property
+    def out_width(self) -> int:
+        return self.field_bits * len(self.out_names)
+
+    def latency(self) -> int:
+        """Cycles from the edge that takes the ``s_axis`` transfer (counted) to the first
+        after which ``m_axis_tvalid`` is high, less the step's own cycles: the writes, the
+        start, the step's end, and the reads of the result (read latency 2)."""
+        return len(self.in_names) + len(self.out_addrs) + 4
+
+    @staticmethod
+    def field_bits_of(width: int) -> int:
+        return (width + 7) // 8 * 8
+
+def stream_members(spec: StreamSpec) -> dict:
+    """The AXI4-Stream ports of ``spec``, named as cocotbext-axi's ``AxiStreamBus.from_prefix``
+    and Vivado's interface inference expect them."""
+    return {"s_axis_tvalid": In(1), "s_axis_tready": Out(1), "s_axis_tdata": In(spec.in_width),
+            "m_axis_tvalid": Out(1), "m_axis_tready": In(1), "m_axis_tdata": Out(spec.out_width),
+            "m_axis_tuser": Out(2)}
+
 
 class Backend(wiring.Component):
     """Registers and buffer of an engine core behind the word bus (:class:`WordBusSignature`),
@@ -74,9 +123,10 @@ class Backend(wiring.Component):
         ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
     """
 
-    def __init__(self, params, engine: Engine, rmap):
+    def __init__(self, params, engine: Engine, rmap, stream: StreamSpec | None = None):
         self._params, self._engine = params, engine
         self._map = rmap
+        self._stream = stream
         ctrl = self._map["CTRL"]
         self._f_step = next((f for f in ctrl.fields if f.name == "step"), None)
         if self._f_step is not None:
@@ -87,8 +137,10 @@ class Backend(wiring.Component):
                 raise ValueError("CTRL.step's values must be consecutive")
         elif len(engine.step_names) != 1:
             raise ValueError("an engine of several steps needs a CTRL.step field")
-        super().__init__({"bus": In(WordBusSignature(self._map.address_width - 2, BUS_READ_LATENCY)),
-                          "irq": Out(1)})
+        members = {"bus": In(WordBusSignature(self._map.address_width - 2, BUS_READ_LATENCY)), "irq": Out(1)}
+        if stream is not None:
+            members.update(stream_members(stream))
+        super().__init__(members)
 
     def elaborate(self, platform):
         m = Module()
@@ -118,6 +170,9 @@ class Backend(wiring.Component):
         sticky = {e: Signal(name=f"status_{e}") for e in _EVENTS}
         enable = {e: Signal(name=f"irq_enable_{e}") for e in _EVENTS}
         busy = eng.busy
+        if self._stream is not None:  # a measurement in from s_axis to its result on m_axis
+            streaming = Signal(name="stream_active")
+            busy = eng.busy | streaming
 
         # ------------------------------------------------------------- writes
         w_buf, w_elem, w_half = buffer_at(bus.w_addr)
@@ -222,7 +277,62 @@ class Backend(wiring.Component):
             buf_word = Mux(half_r, elem[32:], elem[:32])
         # (a refused read's data is the front end's to zero)
         m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_word, reg_r)), bus.r_err.eq(err_r)]
+        if self._stream is not None:  # last: its memory accesses override the bus's
+            self._stream_fsm(m, streaming, do_start, do_reset, kb)
         return m
+
+    def _stream_fsm(self, m, streaming, do_start, do_reset, kb):
+        """The stream ports (:class:`StreamSpec`): take a transfer, write its elements, start
+        the step, read the result into ``m_axis``. Its memory accesses override the bus's
+        (assigned after them): the bus's buffer writes answer SLVERR while it is active
+        (``busy`` includes it) and its buffer reads wait while it reads."""
+        spec, eng, bus = self._stream, self._engine, self.bus
+        width, fb = self._params.fmt.width, spec.field_bits
+        k_in, k_out = len(spec.in_names), len(spec.out_addrs)
+        din = Signal(spec.in_width, name="stream_din")
+        dout = Signal(spec.out_width, name="stream_dout")
+        user = Signal(2, name="stream_user")
+        count = Signal(range(max(k_in, k_out) + 1), name="stream_count")
+        got = Signal(range(k_out + 1), name="stream_got")
+        arriving = Signal(BUS_READ_LATENCY, name="stream_arriving")  # a read's word in flight
+        m.d.sync += arriving.eq(Cat(Const(0, 1), arriving[:-1]))
+        m.d.comb += [self.m_axis_tdata.eq(dout), self.m_axis_tuser.eq(user)]
+        with m.If(arriving[-1]):  # the element read two cycles ago: in at the top
+            m.d.sync += [dout.eq(Cat(dout[fb:], eng.mem_rdata[:width], Const(0, fb - width))),
+                         got.eq(got + 1)]
+        IDLE, LOAD, START, RUN, FETCH, OUT = range(6)
+        state = Signal(range(6), name="stream_state")  # (an if-chain, not an FSM: no incomplete case)
+        fetch_addr = Const(0, len(eng.mem_raddr))
+        for j, a in enumerate(spec.out_addrs):
+            fetch_addr = Mux(count == j, a, fetch_addr)
+        with m.If(state == IDLE):
+            m.d.comb += self.s_axis_tready.eq(~eng.busy & ~do_start)
+            with m.If(self.s_axis_tvalid & ~eng.busy & ~do_start):
+                m.d.sync += [din.eq(self.s_axis_tdata), count.eq(0), streaming.eq(1), state.eq(LOAD)]
+        with m.Elif(state == LOAD):  # one element a cycle, from in_base on
+            m.d.comb += [eng.mem_we.eq(1), eng.mem_waddr.eq(spec.in_base + count), eng.mem_wdata.eq(din[:width])]
+            m.d.sync += [din.eq(din >> fb), count.eq(count + 1)]
+            with m.If(count == k_in - 1):
+                m.d.sync += state.eq(START)
+        with m.Elif(state == START):
+            m.d.comb += [eng.start.eq(~do_reset), eng.step.eq(spec.step)]
+            m.d.sync += state.eq(RUN)
+        with m.Elif(state == RUN):
+            with m.If(eng.done):
+                m.d.sync += [user.eq(Cat(eng.err_pivot, eng.err_nan)), count.eq(0), got.eq(0), state.eq(FETCH)]
+        with m.Elif(state == FETCH):  # one read a cycle; the words arrive two cycles later
+            with m.If(count < k_out):
+                m.d.comb += eng.mem_raddr.eq(fetch_addr)
+                m.d.sync += [count.eq(count + 1), arriving[0].eq(1)]
+            m.d.comb += bus.r_wait.eq(bus.r_addr[kb:] == 1)
+            with m.If(arriving[-1] & (got == k_out - 1)):
+                m.d.sync += state.eq(OUT)
+        with m.Else():  # OUT
+            m.d.comb += self.m_axis_tvalid.eq(1)
+            with m.If(self.m_axis_tready):
+                m.d.sync += [streaming.eq(0), state.eq(IDLE)]
+        with m.If(do_reset):  # a soft reset ends a measurement wherever it is
+            m.d.sync += [streaming.eq(0), state.eq(IDLE)]
 
 
 class EngineCore(wiring.Component):
@@ -251,13 +361,20 @@ class EngineCore(wiring.Component):
     latency = None
     initiation_interval = None
 
-    def __init__(self, params, rmap, schedules):
+    def __init__(self, params, rmap, schedules, stream: StreamSpec | None = None):
         self._params = params
         self._map = rmap
         self._schedules = schedules
+        self._stream = stream
         self._engine = Engine(self._schedules)
         self._members = axi4_slave_members(self._map.address_width, BUS_ID_WIDTH)
-        super().__init__({**self._members, **({"irq": Out(1)} if params.irq else {})})
+        self._stream_members = stream_members(stream) if stream is not None else {}
+        super().__init__({**self._members, **({"irq": Out(1)} if params.irq else {}), **self._stream_members})
+
+    @property
+    def stream(self) -> StreamSpec | None:
+        """The stream ports' layout, or ``None`` (no stream ports)."""
+        return self._stream
 
     @property
     def params(self):
@@ -287,9 +404,10 @@ class EngineCore(wiring.Component):
         m = Module()
         m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, BUS_READ_LATENCY)
         m.submodules.engine = self._engine
-        m.submodules.back = back = Backend(self._params, self._engine, self._map)
+        m.submodules.back = back = Backend(self._params, self._engine, self._map, self._stream)
         wiring.connect(m, front.bus, back.bus)
         forward(m, self, front, self._members)
+        forward(m, self, back, self._stream_members)
         if self._params.irq:
             m.d.comb += self.irq.eq(back.irq)
         return m

@@ -4,7 +4,7 @@ with the UKF's register and memory map (:func:`kfgen.hdl.ukf.regmap.ukf_map`).""
 
 from __future__ import annotations
 
-from ..engine.core import EngineCore
+from ..engine.core import EngineCore, StreamSpec
 from .regmap import ukf_map
 from .steps import programs, schedules
 
@@ -18,4 +18,16 @@ class Ukf(EngineCore):
 
     def __init__(self, params):
         self._programs = programs(params)
-        super().__init__(params, ukf_map(params), schedules(params, self._programs))
+        super().__init__(params, ukf_map(params), schedules(params, self._programs),
+                         stream_spec(params, self._programs) if params.streams else None)
+
+
+def stream_spec(params, progs) -> StreamSpec:
+    """The stream ports of an ``on_chip`` core with ``streams``: z then u in, x then the
+    diagonal of P out."""
+    lay, n = progs.layout, params.n
+    x, P = lay["x"], lay["P"]
+    ins = tuple(f"z[{i}]" for i in range(params.m)) + tuple(f"u[{i}]" for i in range(params.nu))
+    return StreamSpec(lay["z"].base, ins, tuple(x(i) for i in range(n)) + tuple(P(i, i) for i in range(n)),
+                      tuple(f"x[{i}]" for i in range(n)) + tuple(f"P[{i},{i}]" for i in range(n)),
+                      StreamSpec.field_bits_of(params.fmt.width))

@@ -34,6 +34,9 @@ def _docs() -> dict[str, Doc]:
         "on_chip": Doc("compile the application's f and h into the engine: one start (CTRL.step = iteration) "
                        "runs the whole iteration, reading z and u (docs/applications.md says what traces)", "",
                        "a switch; needs --app"),
+        "streams": Doc("AXI4-Stream ports beside the AXI4 slave for a design without a processor: s_axis takes "
+                       "one measurement (z, then u) a transfer, m_axis gives x and the diagonal of P", "",
+                       "a switch; needs --on-chip"),
         **{k: v for k, v in engine_docs().items() if k != "format"},
     }
 
@@ -43,9 +46,30 @@ def _build(params):
     return Ukf(params)
 
 
+def _streams(core) -> dict:
+    spec = core.stream
+    if spec is None:
+        return {}
+
+    def fields(names):
+        return [{"name": nm, "lsb": i * spec.field_bits, "width": core.params.fmt.width}
+                for i, nm in enumerate(names)]
+    return {"streams": {
+        "s_axis": {"tdata_width": spec.in_width, "fields": fields(spec.in_names),
+                   "meaning": "one measurement: the core writes z and u, runs iteration"},
+        "m_axis": {"tdata_width": spec.out_width, "fields": fields(spec.out_names),
+                   "tuser": {"err_pivot": 0, "err_nan": 1},
+                   "meaning": "the estimate after that iteration: x, then the diagonal of P"},
+        "latency_cycles": core.cycles("iteration") + spec.latency(),
+        "latency_definition": "clock edges from the one that takes the s_axis transfer (counted) to the first "
+                              "after which m_axis_tvalid is high",
+    }}
+
+
 def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
+        **_streams(core),
         "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
                         for v in steps(params)},
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,

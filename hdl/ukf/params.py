@@ -68,6 +68,11 @@ class UkfParams:
         (CTRL.step = 3), reading ``z`` and ``u`` and leaving the estimate in ``x`` and ``P``.
         Needs ``app``. Off (the default), the core has the chapter's three steps and software
         applies f and h between them.
+    streams : bool
+        With ``on_chip``: AXI4-Stream ports beside the AXI4 slave, so that a design without a
+        processor feeds measurements and takes estimates (``s_axis``: z then u, one
+        measurement a transfer; ``m_axis``: x then the diagonal of P, ``tuser`` the step's
+        err_pivot and err_nan).
     irq : bool
         Whether the core has an ``irq`` output (and an IRQ_ENABLE register).
     address_width : int or None
@@ -94,6 +99,7 @@ class UkfParams:
     w0: float = 0.0
     app: str | None = None
     on_chip: bool = False
+    streams: bool = False
     irq: bool = True
     address_width: int | None = None
     name: str = "ukf"
@@ -126,6 +132,10 @@ class UkfParams:
             raise ParamError("on_chip", f"must be true or false, not {self.on_chip!r}")
         if self.app is not None and (not isinstance(self.app, str) or not self.app):
             raise ParamError("app", f"must be MODULE:CLASS or FILE.py:CLASS, not {self.app!r}")
+        if not isinstance(self.streams, bool):
+            raise ParamError("streams", f"must be true or false, not {self.streams!r}")
+        if self.streams and not self.on_chip:
+            raise ParamError("streams", "feeds the on-chip iteration: give --on-chip (and --app) with it")
         if self.on_chip:
             if self.app is None:
                 raise ParamError("on_chip", "compiles an application's f and h into the core: give --app MODULE:CLASS")

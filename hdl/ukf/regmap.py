@@ -134,7 +134,7 @@ def _on_chip_regions(params, column):
 
 def _off_chip(params):
     from dataclasses import replace
-    return replace(params, on_chip=False)
+    return replace(params, on_chip=False, streams=False)
 
 
 def ukf_map(params) -> RegisterMap:

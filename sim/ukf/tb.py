@@ -323,6 +323,66 @@ async def on_chip_iterations(dut):
         dut._log.info("iteration %d: %s cycles", it, measured)
 
 
+@cocotb.test()
+async def stream_iterations(dut):
+    """A core with stream ports (``--on-chip --streams``), fed as a design without a
+    processor would: the application's measurements on ``s_axis`` (cocotbext-axi's
+    AxiStreamSource), the estimates taken from ``m_axis`` (AxiStreamSink, with backpressure);
+    every field word for word against the golden model, ``tuser`` against its status, the
+    latency from the transfer to the result against the manifest."""
+    from cocotb.triggers import FallingEdge as Fall
+    from cocotbext.axi import AxiStreamBus, AxiStreamFrame, AxiStreamSink, AxiStreamSource
+
+    from kfgen.sim.ukf.app import checked_scenario, load_app
+    from kfgen.sim.ukf.software import initial_words
+
+    tb = await setup(dut)
+    p, fmt = tb.params, tb.fmt
+    spec = tb.manifest["streams"]
+    app = load_app(p.app)
+    for name, words in initial_words(app, fmt).items():
+        await tb.put(name, from_words(fmt, words))
+    source = AxiStreamSource(AxiStreamBus.from_prefix(dut, "s_axis"), dut.clk, dut.rst)
+    sink = AxiStreamSink(AxiStreamBus.from_prefix(dut, "m_axis"), dut.clk, dut.rst)
+    sink.set_pause_generator(iter(([1] * 5 + [0] * 2) * 1000))  # backpressure
+    lay = tb.layout
+    steps = int(os.environ.get("KFGEN_TB_ITERATIONS", "3"))
+    sc = checked_scenario(app, steps, int(os.environ.get("KFGEN_TB_SEED", "1")))
+
+    def pack(fields, words):
+        value = 0
+        for f, w in zip(fields, words):
+            value |= w << f["lsb"]
+        return value.to_bytes(spec["s_axis"]["tdata_width"] // 8, "little")
+
+    for it, (u, z) in enumerate(sc.inputs()):
+        words = to_words(fmt, np.r_[z, u])
+        z_reg = lay["z"]
+        tb.gold[z_reg.base:z_reg.base + len(words)] = words  # z then u: one run of the buffer
+        st = run(tb.ukf.steps["iteration"], tb.gold)
+        await source.send(AxiStreamFrame(pack(spec["s_axis"]["fields"], words)))
+        await Fall(dut.s_axis_tready)
+        taken = tb.now()
+        await RisingEdge(dut.m_axis_tvalid)
+        latency = tb.now() - taken + 1
+        frame = await sink.recv()
+        value = int.from_bytes(bytes(frame.tdata), "little")
+        got = [value >> f["lsb"] & ((1 << f["width"]) - 1) for f in spec["m_axis"]["fields"]]
+        x, P = lay["x"], lay["P"]
+        want = [tb.gold[x(i)] for i in range(p.n)] + [tb.gold[P(i, i)] for i in range(p.n)]
+        assert got == want, (it, [hex(g) for g in got], [hex(w) for w in want])
+        user = frame.tuser if isinstance(frame.tuser, int) else frame.tuser[0]
+        assert user == (st.pivot | st.nan << 1), (it, user, st)
+        assert latency == spec["latency_cycles"], (latency, spec["latency_cycles"])
+        dut._log.info("measurement %d: estimate after %d cycles", it, latency)
+        # the status as the bus sees it: done, and the stream idle again
+        status = await tb.read_reg("STATUS")
+        assert status & tb.bits("STATUS", done=1) and not status & 1, hex(status)
+        await tb.write_reg("STATUS", status)
+    for name in ("x", "P", "z", "sigma_points_f", "sigma_points_h"):
+        await tb.check(name)
+
+
 def AugmentedUKF_ref(p, x0, P0, Q, R):
     from kfgen.sim.ukf.reference import AugmentedUKF
     return AugmentedUKF(p.n, p.nw, p.nv, p.m, f, h, p.w0, x0, P0, Q, R)

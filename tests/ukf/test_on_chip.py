@@ -129,6 +129,82 @@ def test_c_processor(generated, tmp_path):
         assert np.array_equal(d["estimates"], want)
 
 
+#: A small application with a scenario, for the stream ports' core (a quick build): no control
+#: input, so the core has no u region.
+SMALL_APP = '''
+import numpy as np
+from kfgen.sim.ukf.app import Scenario, UkfApplication
+
+
+class Drift(UkfApplication):
+    n, nw, nv, m = 2, 2, 1, 1
+    W0 = 0.25
+    dt = 0.1
+    x0 = np.array([0.5, -0.2])
+    P0 = np.eye(2) * 0.5
+    Q = np.eye(2) * 1e-3
+    R = np.eye(1) * 1e-2
+
+    def f(self, x, w, u, dt):
+        return np.array([x[0] + dt * x[1], 0.98 * x[1] - 0.05 * x[0] * x[0] * dt]) + w
+
+    def h(self, x, v):
+        return np.array([np.sqrt(x[0] * x[0] + 1.0)]) + v
+
+    def scenario(self, steps, seed):
+        rng = np.random.default_rng(seed)
+        x, truth, z = self.x0.copy(), [], []
+        for _ in range(steps):
+            x = self.f(x, rng.normal(0, 0.03, 2), None, self.dt)
+            truth.append(x)
+            z.append(self.h(x, rng.normal(0, 0.1, 1)))
+        return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), None, np.array(z))
+'''
+
+
+@pytest.fixture(scope="module")
+def streams_core(build_root):
+    out = build_root / "ukf_streams"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "drift.py").write_text(SMALL_APP)
+    kfgen("ukf", "--app", f"{out / 'drift.py'}:Drift", "--on-chip", "--streams", "--name", "ukf_st", "-o", out)
+    return out
+
+
+def test_streams_manifest(streams_core):
+    m = json.loads((streams_core / "ukf_st.json").read_text())
+    st = m["streams"]
+    assert [f["name"] for f in st["s_axis"]["fields"]] == ["z[0]"]
+    assert [f["name"] for f in st["m_axis"]["fields"]] == ["x[0]", "x[1]", "P[0,0]", "P[1,1]"]
+    assert [f["lsb"] for f in st["m_axis"]["fields"]] == [0, 32, 64, 96] and st["m_axis"]["tdata_width"] == 128
+    assert st["latency_cycles"] == m["cycles"]["iteration"] + 1 + 4 + 4
+    assert "u" not in {mm["name"] for mm in m["memories"]}
+    ports = {p["name"]: p for p in m["ports"]}
+    assert ports["s_axis_tdata"]["width"] == 32 and ports["m_axis_tuser"]["width"] == 2
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("ukf_streams")
+def test_streams_rtl(streams_core):
+    """Lint clean; measurements in on s_axis and estimates out on m_axis (cocotbext-axi, with
+    backpressure), word for word, the latency the manifest's; then the bus-driven iteration
+    on the same core."""
+    rc, messages = lint(streams_core / "ukf_st.v")
+    assert rc == 0 and not messages, "\n".join(messages)
+    model = build_ukf_core(streams_core, "ukf_st", VERILATOR_CACHE)
+    run_ukf(model, streams_core, "ukf_st", ["stream_iterations", "on_chip_iterations"], "streams",
+            {"KFGEN_TB_ITERATIONS": "4"})
+
+
+@pytest.mark.full
+@pytest.mark.verilator
+def test_nanosat_streams_rtl(build_root):
+    out = build_root / "ukf_nanosat_streams"
+    kfgen("ukf", *ON_CHIP, "--streams", "--name", "ukf_nst", "-o", out)
+    model = build_ukf_core(out, "ukf_nst", VERILATOR_CACHE)
+    run_ukf(model, out, "ukf_nst", ["stream_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
+
+
 UNTRACEABLE = '''
 import numpy as np
 from kfgen.sim.ukf.app import UkfApplication
@@ -183,6 +259,7 @@ def test_untraceable_applications_exit_2(tmp_path, cls, says):
 
 @pytest.mark.parametrize("args, says", [
     (["--on-chip"], "--on-chip: compiles an application's f and h into the core: give --app MODULE:CLASS"),
+    (["--app", NANOSAT, "--streams"], "--streams: feeds the on-chip iteration: give --on-chip (and --app) with it"),
     ([*ON_CHIP, "--states", "6"], "--app: nanosat:Nanosat has n, nw, nv, m = (7, 7, 6, 6), the core (6, 7, 6, 6)"),
     (["--app", "tracker:Tracker", "--on-chip"], "np.arctan2 does not trace"),
 ])
