@@ -37,6 +37,7 @@ RUN_HERE = {
     "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum",
     "kfgen castella --tracks 8 --name trk --clock-mhz 125 -o cores/trk",
     "kfgen ukf --app nanosat:Nanosat --on-chip -o out/ukf_on_chip",
+    "kfgen ukf --app nanosat:Nanosat --on-chip --streams -o out/ukf_streams",
 }
 #: Of those, the one that needs the example application docs/examples/pendulum.py: run alone.
 PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"
@@ -530,3 +531,15 @@ def test_fpu_page_default_stages(described):
     assert (f"add/sub {s('add')}, mul {s('mul')} and fma {s('fma')} are fixed for every format") in page
     assert (f"binary32: add and sub {s('add')}, mul {s('mul')}, fma {s('fma')}, div {s('div')}, sqrt {s('sqrt')}, "
             f"i2f {s('i2f')}, f2i {s('f2i')}, exp {s('exp')}") in page
+
+
+def test_ukf_streams_figures_are_the_manifests(outputs):
+    """The stream ports' widths and latency on the UKF page are the nanosatellite core's."""
+    m = json.loads((outputs["kfgen ukf --app nanosat:Nanosat --on-chip --streams -o out/ukf_streams"]
+                    / "ukf.json").read_text())
+    st = m["streams"]
+    text = (ROOT / "docs" / "ukf.md").read_text()
+    assert f"{st['s_axis']['tdata_width']} bits in and {st['m_axis']['tdata_width']} out" in text
+    assert f"({st['latency_cycles']:,} for the nanosatellite at P = 1)" in text
+    n, m_, nu = m["sizes"]["n"], m["sizes"]["m"], 3
+    assert st["latency_cycles"] == m["cycles"]["iteration"] + (m_ + nu) + 2 * n + 4
