@@ -16,6 +16,9 @@ with P = 1, 2, 5 and 10 processing elements, three parts:
    application as the processor sees it, at P = 1 and 2, with AXI bursts and with single
    beats, split into the core's steps and the bus transfers, beside the chapter's Table 1;
    and the co-simulation's speed.
+5. The core with f and h on chip (``kfgen ukf --app nanosat:Nanosat --on-chip``) at P = 1 and
+   2: the iteration's cycles (simulated: the testbench's ``on_chip_iterations`` asserts them
+   equal to the manifest's), resources and ECP5 Fmax beside the three-step core's.
 
 Everything is rebuilt in ``build/bench_ukf/`` (the Verilator builds are cached there by
 content); ``make bench`` runs this after the other cores' benches.
@@ -286,6 +289,9 @@ def _parser():
                     help="of those, the ones placed and routed on the ECP5 (default 1,2)")
     ap.add_argument("--system-pes", type=_pe_list, default=[1, 2],
                     help="of those, the ones whose whole system is co-simulated (default 1,2)")
+    ap.add_argument("--on-chip-pes", type=_pe_list, default=[1, 2],
+                    help="P of the cores with the nanosatellite's f and h on chip (part 5; default 1,2)")
+    ap.add_argument("--no-on-chip", action="store_true", help="skip part 5 (the on-chip cores)")
     ap.add_argument("--no-sim", action="store_true", help="skip the simulations (no measured cycles, no system)")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
     ap.add_argument("--no-gen", action="store_true",
@@ -298,6 +304,59 @@ def _parser():
     ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
     ap.add_argument("-o", "--out", default="build/bench_ukf", help="work directory (default build/bench_ukf)")
     return ap
+
+
+#: The application of part 5.
+ON_CHIP_APP = "nanosat:Nanosat"
+
+
+def on_chip_rows(pes: list[int], out: Path) -> list[dict]:
+    """Part 5's cores, generated: one row per P."""
+    import kfgen.sim.ukf.app  # noqa: F401 (hands the application loader to hdl)
+    rows = []
+    for p in pes:
+        params = UkfParams(app=ON_CHIP_APP, on_chip=True, pes=p, name=f"ukf_oc_p{p}")
+        work, manifest = write_core(CORE, params, out)
+        eng = manifest["engine"]
+        mc = Machine(1, eng["fma_latency"], eng["div_latency"], eng["sqrt_latency"],
+                     read_latency=eng["read_latency"], unit_register=eng["unit_register"])
+        prog = programs(params).iteration
+        rows.append({"pes": p, "top": params.name, "work": work, "iteration": manifest["cycles"]["iteration"],
+                     "store_bits": eng["program_store"]["bits"], "on_chip": True, "fmas": prog.fma_count,
+                     "chain": chain_bound(prog, mc)})
+    return rows
+
+
+def _simulate_on_chip(r: dict, cache: Path) -> None:
+    from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+    try:
+        run_ukf(build_ukf_core(r["work"], r["top"], cache), r["work"], r["top"], ["on_chip_iterations"],
+                "on_chip", env={"KFGEN_TB_ITERATIONS": "1"})
+        r["measured"] = r["iteration"]  # the testbench asserts the manifest's cycles
+    except (AssertionError, RuntimeError) as exc:
+        r["sim_error"] = str(exc).splitlines()[0]
+
+
+def on_chip_table(rows: list[dict], three: list[dict]) -> str:
+    """Part 5: the on-chip core beside the three-step core of the same P."""
+    by_p = {r["pes"]: r for r in three}
+    head = ["P", "iteration on chip (cycles)", "/ max(FMAs / P, chain)", "chapter, Table 1 (us) / ours at 100 MHz",
+            "three steps + bursts (cycles)", "LUT", "three-step LUT", "FF",
+            "DSP48E1", "BRAM (36 Kb)", "ECP5 Fmax (MHz)", "three-step Fmax", "iteration at Fmax (us)"]
+    out = []
+    for r in rows:
+        t = by_p.get(r["pes"], {})
+        bursts = t.get("system", {}).get("burst", {}).get("cycles", {}).get("transfer")
+        steps = sum(t["manifest_cycles"].values()) if t else None
+        it, ch = r["iteration"], CHAPTER_SYSTEM_US.get(r["pes"])
+        ratio = f"{it / max(r['fmas'] / r['pes'], r['chain']):.2f}" if "fmas" in r else "-"
+        out.append([str(r["pes"]), fmt(r.get("measured", r["iteration"])) + ("" if "measured" in r else " (manifest)"),
+                    ratio, f"{ch} / {it / 100:.1f} = {ch / (it / 100):.1f}x" if ch else "-",
+                    (fmt(steps) + (f" + {fmt(round(bursts))}" if bursts else "")) if steps else "-",
+                    fmt(r.get("lut")), fmt(t.get("lut")), fmt(r.get("ff")), fmt(r.get("dsp")),
+                    f"{r['bram36']:g}" if "bram36" in r else "-", fmt(r.get("fmax_mhz")), fmt(t.get("fmax_mhz")),
+                    fmt(r["iteration"] / r["fmax_mhz"]) if r.get("fmax_mhz") else "-"])
+    return md_table(head, out)
 
 
 def _timed(row: dict, key: str, fn, *args) -> None:
@@ -351,14 +410,20 @@ def main(argv=None) -> int:
                 seconds["system co-simulation (part 4)"] = time.monotonic() - t0
         for r in rows:
             r.setdefault("iteration", sum(r["manifest_cycles"].values()))
+        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out)
+        if chip and not args.no_sim:
+            t0 = time.monotonic()
+            for r in chip:
+                _simulate_on_chip(r, out / "verilator")
+            seconds["on-chip simulation (part 5)"] = time.monotonic() - t0
         if not args.no_synth:
             t0 = time.monotonic()
             ends = {}
             # The longest jobs first (the largest P) so that the two workers finish together.
-            jobs = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in rows[::-1]]
+            jobs = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in rows[::-1] + chip[::-1]]
             if not args.no_fmax:
                 jobs += [(r, "ecp5", ecp5_fmax, r["work"], r["top"], args.freq, tuple(args.seeds))
-                         for r in rows[::-1] if r["pes"] in args.fmax_pes]
+                         for r in rows[::-1] + chip[::-1] if r["pes"] in args.fmax_pes]
 
             def job(row, key, fn, *fargs):
                 _timed(row, key, fn, *fargs)
@@ -376,6 +441,12 @@ def main(argv=None) -> int:
         print(f"bench_ukf: {exc}", file=sys.stderr)
         return 1
     report = render(rows, bound, engine, args, seconds)
+    if chip:
+        report += ("\nThe core with the nanosatellite's f and h on chip (kfgen ukf --app nanosat:Nanosat --on-chip), one "
+                   "start an iteration, beside the three-step core (whose iteration also needs the processor's f and "
+                   "h and the bus transfers of part 4):\n\n" + on_chip_table(chip, rows) + "\n"
+                   + "".join(f"* On chip, P = {r['pes']}: the testbench failed: {r['sim_error']}\n"
+                             for r in chip if r.get("sim_error")))
     gen_ok = True
     if not args.no_gen:
         from .bench_gen import ROWS, table
@@ -383,10 +454,10 @@ def main(argv=None) -> int:
         report += "\n" + gen_report
     print(report, end="")
     (out / "bench_ukf.md").write_text(report)
-    (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "bounds": bound, "engine": engine,
+    (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)
                                         + "\n")
-    failed = any(r.get(k) for r in rows for k in ("sim_error", "xilinx_error", "ecp5_error")) \
+    failed = any(r.get(k) for r in rows + chip for k in ("sim_error", "xilinx_error", "ecp5_error")) \
         or any("error" in res for r in rows for res in r.get("system", {}).values())
     return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in rows)) else 0
 
