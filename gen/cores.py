@@ -82,6 +82,40 @@ def _ukf_driver(params):
     return ukf_driver(params.name, params.format)
 
 
+def _ukf_documents(params):
+    """The UKF's map documents and C driver; with stream ports, their fields in ``TOP.md``
+    and as ``TOP_S_AXIS_*``/``TOP_M_AXIS_*`` macros in the driver's header."""
+    docs = _map_documents(_ukf_map, _ukf_driver)(params)
+    if not params.streams:
+        return docs
+    from kfgen.hdl.ukf.core import stream_spec
+    from kfgen.hdl.ukf.steps import programs
+    spec = stream_spec(params, programs(params))
+    top, width = params.name, params.fmt.width
+    md = ["", "## Stream ports", "",
+          "One `s_axis` transfer is one measurement: the core writes it into `z` (and `u`), runs `iteration` "
+          "and puts the estimate on `m_axis` (`m_axis_tuser`: bit 0 err_pivot, bit 1 err_nan). Each field is "
+          f"one element of {params.format}, in {spec.field_bits} bits (the rest zero).", "",
+          "| port | field | bits |", "|---|---|---|"]
+    macros = ["", "/* Stream ports (--streams): each field's lowest bit in tdata; every field is "
+              f"{width} bits wide in a {spec.field_bits}-bit slot. */",
+              f"#define {top.upper()}_S_AXIS_TDATA_WIDTH {spec.in_width}u",
+              f"#define {top.upper()}_M_AXIS_TDATA_WIDTH {spec.out_width}u"]
+    for port, names in (("s_axis", spec.in_names), ("m_axis", spec.out_names)):
+        for i, name in enumerate(names):
+            lo = i * spec.field_bits
+            md.append(f"| `{port}_tdata` | {name} | {lo + width - 1}:{lo} |")
+            ident = name.upper().replace("[", "").replace("]", "").replace(",", "_")
+            macros.append(f"#define {top.upper()}_{port.upper()}_{ident}_LSB {lo}u")
+    docs[f"{top}.md"] = docs[f"{top}.md"].rstrip("\n") + "\n" + "\n".join(md) + "\n"
+    header = f"{top}_driver.h"
+    if header in docs:
+        text = docs[header]
+        at = text.rindex("#ifdef __cplusplus")
+        docs[header] = text[:at] + "\n".join(macros).lstrip("\n") + "\n\n" + text[at:]
+    return docs
+
+
 def _ukf_app(spec):
     # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
     from kfgen.sim.ukf.app import load_app
@@ -94,7 +128,7 @@ _HOOKS = {
     "fpu": {"bench": "kfgen.gen.bench_fpu", "smoke": _smoke("kfgen.sim.fpu.smoke")},
     "schur": {"bench": "kfgen.gen.bench_schur", "smoke": _smoke("kfgen.sim.schur.smoke")},
     "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads, "app": _ukf_app,
-            "documents": _map_documents(_ukf_map, _ukf_driver), "extra": _with_map},
+            "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map), "extra": _with_map},
 }

@@ -181,6 +181,10 @@ def test_streams_manifest(streams_core):
     assert "u" not in {mm["name"] for mm in m["memories"]}
     ports = {p["name"]: p for p in m["ports"]}
     assert ports["s_axis_tdata"]["width"] == 32 and ports["m_axis_tuser"]["width"] == 2
+    # the documents: the fields in TOP.md, and as macros in the C driver's header
+    assert "| `m_axis_tdata` | P[1,1] | 127:96 |" in (streams_core / "ukf_st.md").read_text()
+    header = (streams_core / "ukf_st_driver.h").read_text()
+    assert "#define UKF_ST_M_AXIS_P1_1_LSB 96u" in header and "#define UKF_ST_S_AXIS_TDATA_WIDTH 32u" in header
 
 
 @pytest.mark.verilator
