@@ -73,6 +73,7 @@ plots: $(DEV)
 	$(PY) -m kfgen.sim.castella.mc build/mc
 	$(PY) -m kfgen.sim.castella.plots -o sim/castella/figures --verilator build/mc/verilator_mc.npz
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --rtl build/ukf_cosim
+	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --on-chip --rtl build/ukf_cosim_on_chip
 	$(PY) -m kfgen.sim.imm.plots -o sim/imm/figures --rtl build/imm_scenario
 
 clean:

@@ -31,9 +31,15 @@ SEED = 1
 REFERENCE = "float64 reference"
 GOLDEN = "binary32 golden model"
 RTL = "generated Verilog (co-simulation)"
+GOLDEN_ON_CHIP = "binary32 golden model, f and h on chip"
+RTL_ON_CHIP = "generated Verilog, f and h on chip"
+#: The shipped application's spec, for the on-chip core.
+NANOSAT_SPEC = "nanosat:Nanosat"
 _STYLES = {REFERENCE: dict(color="tab:blue", lw=2.6, alpha=0.6),
            GOLDEN: dict(color="black", lw=1.0, ls="--"),
-           RTL: dict(color="tab:orange", lw=0, marker=".", ms=3)}
+           RTL: dict(color="tab:orange", lw=0, marker=".", ms=3),
+           GOLDEN_ON_CHIP: dict(color="black", lw=1.0, ls=":"),
+           RTL_ON_CHIP: dict(color="tab:green", lw=0, marker=".", ms=3)}
 #: The chapter's claim after convergence (section 4.6), drawn as a line.
 CLAIM_DEG = 0.1
 
@@ -75,30 +81,37 @@ def figure12(t, traces: dict, path, title: str = "") -> None:
     plt.close(fig)
 
 
-def nanosat_runs(steps: int = STEPS, seed: int = SEED) -> dict:
-    """The nanosatellite scenario through the reference and the binary32 golden model.
+def nanosat_runs(steps: int = STEPS, seed: int = SEED, on_chip: bool = False) -> dict:
+    """The nanosatellite scenario through the reference and the binary32 golden model (of
+    the core with f and h on chip too, with ``on_chip``).
 
     Returns ``t`` (K,), ``truth`` (K, 7) and ``estimates``: {trace name: (K, 7)}."""
     app = Nanosat()
     sc = app.scenario(steps, seed)
-    return {"t": sc.t, "truth": sc.truth,
-            "estimates": {REFERENCE: run_reference(app, sc), GOLDEN: run_golden(app, sc, "binary32")}}
+    estimates = {REFERENCE: run_reference(app, sc), GOLDEN: run_golden(app, sc, "binary32")}
+    if on_chip:
+        estimates[GOLDEN_ON_CHIP] = run_golden(app, sc, "binary32", on_chip=NANOSAT_SPEC)
+    return {"t": sc.t, "truth": sc.truth, "estimates": estimates}
 
 
-def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED) -> np.ndarray:
-    """The nanosatellite on the generated default core (binary32, P = 1) in a Verilator
-    co-simulation (:mod:`kfgen.sim.ukf.cosim`, every word checked against the golden model);
-    the estimates, (K, 7). About 0.3 s an iteration."""
+def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = False) -> np.ndarray:
+    """The nanosatellite on the generated default core (binary32, P = 1; with ``on_chip`` the
+    one with f and h compiled into it) in a Verilator co-simulation
+    (:mod:`kfgen.sim.ukf.cosim`, every word checked against the golden model); the
+    estimates, (K, 7). About 0.3 s an iteration (0.05 s on chip: one transaction)."""
     from kfgen.gen.synth import write_core
     from kfgen.hdl.ukf.descriptor import CORE
 
     from .run import build_ukf_core, run_cosim
 
     app = Nanosat()
-    rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name="ukf_nanosat"), work)
-    model = build_ukf_core(rtl, "ukf_nanosat", work / "verilator")
+    chip = {"app": NANOSAT_SPEC, "on_chip": True} if on_chip else {}
+    rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name="ukf_nanosat_oc" if on_chip else "ukf_nanosat",
+                                        **chip), work)
+    top = rtl.name
+    model = build_ukf_core(rtl, top, work / "verilator")
     npz = rtl / "cosim.npz"
-    run_cosim(model, rtl, "ukf_nanosat", "python_processor", "figure12", f"{Nanosat.__module__}:Nanosat", steps,
+    run_cosim(model, rtl, top, "python_processor", "figure12", f"{Nanosat.__module__}:Nanosat", steps,
               seed=seed, out=npz)
     with np.load(npz) as d:
         return d["estimates"]
@@ -126,10 +139,17 @@ def main(argv=None):
                                                           "per trace name, one entry per iteration")
     ap.add_argument("--rtl", metavar="DIR", help="also co-simulate the generated core (Verilator, the Python "
                                                  "processor over AXI) in DIR and draw its trace")
+    ap.add_argument("--on-chip", action="store_true",
+                    help="the core with f and h on chip (kfgen ukf --on-chip) instead: its golden model's trace, "
+                         "and with --rtl its co-simulation's; writes figure12_on_chip.png")
     args = ap.parse_args(argv)
-    runs = nanosat_runs(args.steps, args.seed)
+    runs = nanosat_runs(args.steps, args.seed, args.on_chip)
     if args.rtl:
-        runs["estimates"][RTL] = rtl_run(Path(args.rtl), args.steps, args.seed)
+        import time
+        t0 = time.monotonic()
+        runs["estimates"][RTL_ON_CHIP if args.on_chip else RTL] = rtl_run(Path(args.rtl), args.steps, args.seed,
+                                                                           args.on_chip)
+        print(f"co-simulation of {args.steps} iterations: {time.monotonic() - t0:.0f} s (build included)")
     t, truth = runs["t"], runs["truth"]
     traces = {name: attitude_error_deg(x[:, :4], truth[:, :4]) for name, x in runs["estimates"].items()}
     if args.traces:
@@ -138,9 +158,11 @@ def main(argv=None):
     _summary(t, truth, runs["estimates"])
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    figure12(t, traces, outdir / "figure12.png",
-             f"Nanosatellite attitude error, {len(t)} iterations at {1 / (t[1] - t[0]):.0f} Hz, seed {args.seed}")
-    print(outdir / "figure12.png")
+    name = "figure12_on_chip.png" if args.on_chip else "figure12.png"
+    figure12(t, traces, outdir / name,
+             f"Nanosatellite attitude error, {len(t)} iterations at {1 / (t[1] - t[0]):.0f} Hz, seed {args.seed}"
+             + (", f and h on chip" if args.on_chip else ""))
+    print(outdir / name)
 
 
 if __name__ == "__main__":

@@ -84,11 +84,18 @@ def _golden(model, inputs: dict, fmt=B64):
 
 
 def _model_fn(x, w, u):
+    """Every construct that traces, once or more."""
+    x = np.asarray(x, dtype=np.float64)
     c, s = x[0], x[1]
     rot = np.array([[c, -s], [s, c]])
     v = rot @ (u - w) / 4.0 + np.maximum(x[2:4], -x[2:4])
+    m = np.vstack([np.hstack([np.eye(2) * 0.5, np.zeros((2, 1))]), np.ones((1, 3)) / 3.0])
+    y = np.matmul(m, np.concatenate([x[:2], [np.float64(2.0)]])) + np.diag(np.outer(u, w)).sum()
+    stacked = np.stack([x[:2], w])
     return np.r_[v, np.hypot(v[0], v[1]), np.exp(-x[2] ** 2 / 2), abs(x[3]), np.minimum(x[2], x[3]),
-                 (x[0] + 1.5) ** -2, np.dot(x[:2], u) / (1.0 + x[1] * x[1]), np.cross(x[:3], u[[0, 1, 0]])]
+                 (x[0] + 1.5) ** -2, np.dot(x[:2], u) / (1.0 + x[1] * x[1]), np.cross(x[:3], u[[0, 1, 0]]),
+                 y, np.sum(stacked, axis=0), np.square(x[3]) - x[3] ** 3 + +x[0] - (-x[1]),
+                 np.absolute(x[2]) * 0.0 + 1.0 * np.sqrt(x[0] * x[0] + 2.0)]
 
 
 def test_traced_function_computes_the_function():

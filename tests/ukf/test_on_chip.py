@@ -305,3 +305,20 @@ def test_c_driver_compiles_bare_metal(generated, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "int ukf_oc_iterate(ukf_oc_dev_t *dev, const double *u, const double *z);" in \
         (generated / "ukf_oc_driver.h").read_text()
+
+
+@pytest.mark.full
+@pytest.mark.verilator
+def test_figure12_on_chip(tmp_path, capsys):
+    """Figure 12 from the on-chip core's Verilog over the 1000 iterations: its estimates the
+    golden model's, the attitude below 0.1 degree after the first second."""
+    from kfgen.sim.ukf import plots
+    plots.main(["-o", str(tmp_path / "fig"), "--on-chip", "--rtl", str(tmp_path / "rtl")])
+    assert (tmp_path / "fig" / "figure12_on_chip.png").stat().st_size > 10_000
+    out = capsys.readouterr().out.splitlines()
+
+    def row(name):  # at 0.1 s, at 1 s, max after 1 s, mean after 1 s, bias error
+        (line,) = [ln for ln in out if ln.startswith(name + " ")]
+        return line[len(name):].split()
+    rtl, gold = row(plots.RTL_ON_CHIP), row(plots.GOLDEN_ON_CHIP)
+    assert rtl == gold and float(rtl[2]) < 0.1, (rtl, gold)
