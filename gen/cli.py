@@ -236,19 +236,25 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
     params_cls = core.params
     defaults = _defaults(params_cls)
     values, source = dict(defaults), {}
+    config = {} if args.config is None else _read_config(args.config, defaults)
     spec = getattr(args, "app", None)
+    where = f"--app {spec}"
+    if spec is None and isinstance(config.get("app"), str) and core.app is not None:
+        spec, where = config.pop("app"), f"{args.config} (app)"  # the same as --app, from the file
     if spec is not None:
         try:
             from_app = core.app(spec)
         except ValueError as exc:
-            raise UsageError("--app", _one_line(exc)) from None
+            raise UsageError("--app", _one_line(exc) + ("" if where.startswith("--app") else f" (from {where})")) \
+                from None
         for k, v in from_app.items():
-            values[k], source[k] = v, f"--app {spec}"
+            values[k], source[k] = v, where
         if "app" in defaults:
-            values["app"], source["app"] = spec, f"--app {spec}"
-    if args.config is not None:
-        for k, v in _read_config(args.config, defaults).items():
-            values[k], source[k] = v, args.config
+            values["app"], source["app"] = spec, where
+    for k, v in config.items():
+        if k == "app" and core.app is not None and spec is not None and args.app is not None:
+            continue  # --app on the command line wins over the file's
+        values[k], source[k] = v, args.config
     for field in defaults:
         if field == "app" and core.app is not None:
             continue  # --app, set above

@@ -322,3 +322,17 @@ def test_figure12_on_chip(tmp_path, capsys):
         return line[len(name):].split()
     rtl, gold = row(plots.RTL_ON_CHIP), row(plots.GOLDEN_ON_CHIP)
     assert rtl == gold and float(rtl[2]) < 0.1, (rtl, gold)
+
+
+def test_config_file_names_the_application(tmp_path):
+    """``app`` in a --config file does what --app does (the sizes, and the models on chip)."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('app = "nanosat:Nanosat"\non-chip = true\nstates = 7\n')
+    proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr
+    m = json.loads((tmp_path / "out" / "ukf.json").read_text())
+    assert (m["parameters"]["app"], m["parameters"]["on_chip"], list(m["cycles"])) == (NANOSAT, True, ["iteration"])
+    cfg.write_text('app = "nosuch:App"\non-chip = true\n')
+    proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "bad")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and f"(from {cfg} (app))" in proc.stderr, \
+        proc.stderr
