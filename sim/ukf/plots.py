@@ -109,7 +109,8 @@ def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = Fa
     rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name="ukf_nanosat_oc" if on_chip else "ukf_nanosat",
                                         **chip), work)
     top = rtl.name
-    model = build_ukf_core(rtl, top, work / "verilator")
+    # an iteration is about 5,000 cycles: a long run gets the optimised C++
+    model = build_ukf_core(rtl, top, work / "verilator", cycles=steps * 5000)
     npz = rtl / "cosim.npz"
     run_cosim(model, rtl, top, "python_processor", "figure12", f"{Nanosat.__module__}:Nanosat", steps,
               seed=seed, out=npz)

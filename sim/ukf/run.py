@@ -182,7 +182,8 @@ def main(argv=None) -> int:
         return 2
     work = Path(args.out)
     rtl, _ = write_core(CORE, params, work)
-    model = build_ukf_core(rtl, params.name, work / "verilator", waves=args.waves)
+    model = build_ukf_core(rtl, params.name, work / "verilator", waves=args.waves,
+                           cycles=args.steps * 5000)  # about 5,000 cycles an iteration at P = 1
     driver = build_driver(rtl, params.name) if args.processor == "c" else None
     npz = rtl / "cosim.npz"
     npz.unlink(missing_ok=True)  # a run that fails leaves none
