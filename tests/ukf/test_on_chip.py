@@ -202,6 +202,23 @@ def test_streams_rtl(streams_core):
 
 @pytest.mark.full
 @pytest.mark.verilator
+@pytest.mark.parametrize("fmt", ["binary16", "binary64"])
+def test_streams_other_formats(build_root, fmt):
+    """The stream ports with 16-bit fields and with two-bus-word elements, P = 2."""
+    out = build_root / f"ukf_streams_{fmt}"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "drift.py").write_text(SMALL_APP)
+    top = f"ukf_st_{fmt}"
+    kfgen("ukf", "--app", f"{out / 'drift.py'}:Drift", "--on-chip", "--streams", "--format", fmt, "--pes", "2",
+          "--name", top, "-o", out)
+    rc, messages = lint(out / f"{top}.v")
+    assert rc == 0 and not messages, "\n".join(messages)
+    model = build_ukf_core(out, top, VERILATOR_CACHE)
+    run_ukf(model, out, top, ["stream_iterations", "on_chip_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
+
+
+@pytest.mark.full
+@pytest.mark.verilator
 def test_nanosat_streams_rtl(build_root):
     out = build_root / "ukf_nanosat_streams"
     kfgen("ukf", *ON_CHIP, "--streams", "--name", "ukf_nst", "-o", out)
