@@ -353,3 +353,68 @@ def test_config_file_names_the_application(tmp_path):
     proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "bad")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and f"(from {cfg} (app))" in proc.stderr, \
         proc.stderr
+
+
+#: An application whose f has words that read only u (computed once for every point), an
+#: exp, a division and a maximum; its control input is two long.
+SHARED_APP = '''
+import numpy as np
+from kfgen.sim.ukf.app import Scenario, UkfApplication
+
+
+class Steered(UkfApplication):
+    n, nw, nv, m, nu = 3, 3, 2, 2, 2
+    dt = 0.05
+    x0 = np.array([0.2, -0.1, 0.3])
+    P0 = np.eye(3) * 0.2
+    Q = np.eye(3) * 1e-3
+    R = np.eye(2) * 1e-2
+
+    def f(self, x, w, u, dt):
+        gain = np.exp(-0.5 * (u[0] * u[0] + u[1] * u[1]))  # reads only u: once for every point
+        push = np.array([u[0], u[1], u[0] - u[1]]) * gain * dt
+        return x + push + np.array([x[1], -x[0], 0.0]) * dt / (1.0 + x[2] * x[2]) + w
+
+    def h(self, x, v):
+        return np.array([np.maximum(x[0], x[1]), x[2] * 2.0]) + v
+
+    def scenario(self, steps, seed):
+        rng = np.random.default_rng(seed)
+        u = rng.normal(0, 0.5, (steps, 2))
+        x, truth, z = self.x0.copy(), [], []
+        for k in range(steps):
+            x = self.f(x, rng.normal(0, 0.03, 3), u[k], self.dt)
+            truth.append(x)
+            z.append(self.h(x, rng.normal(0, 0.1, 2)))
+        return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), u, np.array(z))
+'''
+
+
+def test_shared_words_and_control_input(tmp_path):
+    """Words that read only u are computed once (a region of their own), and the on-chip
+    core in binary64 equals the three-step core with software f and h to 1e-9."""
+    from kfgen.sim.ukf.app import load_app
+    path = tmp_path / "steered.py"
+    path.write_text(SHARED_APP)
+    spec = f"{path}:Steered"
+    app = load_app(spec)
+    p = UkfParams(**app.core_parameters(), app=spec, on_chip=True, format="binary64")
+    progs = programs(p)
+    assert p.models.f.shared and progs.layout["f_shared"].size == len(p.models.f.shared)
+    assert sum(op.unit == "exp" for op in progs.iteration.ops) == 1  # the gain, once for all points
+    sc = checked_scenario(app, 30, 4)
+    chip = run_golden(app, sc, "binary64", on_chip=spec)
+    soft = run_golden(app, sc, "binary64")
+    assert np.max(np.abs(chip - soft)) < 1e-9 and np.max(np.abs(chip - run_reference(app, sc))) < 1e-9
+
+
+@pytest.mark.full
+@pytest.mark.verilator
+def test_shared_words_rtl(build_root):
+    """The Steered application's core (u, a shared exp, a divider, a maximum) on the RTL."""
+    out = build_root / "ukf_steered"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "steered.py").write_text(SHARED_APP)
+    kfgen("ukf", "--app", f"{out / 'steered.py'}:Steered", "--on-chip", "--name", "ukf_steered", "-o", out)
+    model = build_ukf_core(out, "ukf_steered", VERILATOR_CACHE)
+    run_ukf(model, out, "ukf_steered", ["on_chip_iterations"], "steered", {"KFGEN_TB_ITERATIONS": "4"})
