@@ -64,7 +64,8 @@ def _registers(params) -> tuple[Register, ...]:
         Register("ID", 0x0, 64, "What the core is and how it was generated, so software can discover its "
                  "configuration. Two bus words, low word first.", (
                      Field("core", 0, 8, "ro", f"core identifier, {CORE_ID:#04x} ('U') for the UKF", reset=CORE_ID),
-                     Field("version", 8, 4, "ro", "version of this register and memory map", reset=MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION),
+                     Field("version", 8, 4, "ro", "version of this register and memory map",
+                           reset=MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION),
                      Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
                      Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
                            reset=fmt.frac_bits),
@@ -93,9 +94,7 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
     (programs); role one of REGION_ROLES."""
     n, m, nw, nv, M, N = params.n, params.m, params.nw, params.nv, params.M, params.N
     column = "a column: element i in row i"
-    if params.on_chip:
-        return _on_chip_regions(params, column)
-    return (
+    regions = (
         ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
          f"{column} (n = {n})"),
         ("P", n, n, "rw", "state", "state covariance P, full; after predict P^-, after update P^+",
@@ -114,27 +113,22 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
          f"N points of m elements, h(chi_i^-) in row i (N = {N}, m = {m})"),
         ("z", m, 1, "rw", "input", "measurement z", f"{column} (m = {m})"),
     )
+    return _on_chip(regions, params.nu, column) if params.on_chip else regions
 
 
-def _on_chip_regions(params, column):
-    """The regions of a core with f and h on chip: the same, but the core writes the moved
-    points, and the control input ``u`` follows ``z`` (when nu > 0)."""
-    nu = params.nu
-    regions = []
-    for name, rows, cols, access, role, desc, layout in _regions(_off_chip(params)):
+def _on_chip(regions, nu, column):
+    """The regions of a core with f and h on chip: the core writes the moved points, and the
+    control input ``u`` follows ``z`` (when nu > 0)."""
+    out = []
+    for name, rows, cols, access, role, desc, layout in regions:
         if name == "sigma_points_f":
             access, role, desc = "ro", "output", "f(chi_i), point by point (written by iteration: f on chip)"
         elif name == "sigma_points_h":
             access, role, desc = "ro", "output", "h(chi_i^-), point by point (written by iteration: h on chip)"
-        regions.append((name, rows, cols, access, role, desc, layout))
+        out.append((name, rows, cols, access, role, desc, layout))
     if nu:
-        regions.append(("u", nu, 1, "rw", "input", "control input u of the iteration's f", f"{column} (nu = {nu})"))
-    return tuple(regions)
-
-
-def _off_chip(params):
-    from dataclasses import replace
-    return replace(params, on_chip=False, streams=False)
+        out.append(("u", nu, 1, "rw", "input", "control input u of the iteration's f", f"{column} (nu = {nu})"))
+    return tuple(out)
 
 
 def ukf_map(params) -> RegisterMap:
