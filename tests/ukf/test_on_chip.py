@@ -88,6 +88,16 @@ def test_manifest(generated):
     regions = {mm["name"]: mm for mm in m["memories"]}
     assert regions["u"]["shape"] == [3, 1] and regions["u"]["access"] == "rw"
     assert regions["sigma_points_f"]["access"] == regions["sigma_points_h"]["access"] == "ro"
+    # the UKF page's cost of the models: the program store and the operand memory
+    from helpers import ROOT
+    text = " ".join((ROOT / "docs" / "ukf.md").read_text().split())
+    store, words = m["engine"]["program_store"]["bits"], progs_words(p)
+    assert f"grows from 125,200 to {store:,} bits at P = 1" in text
+    assert f"by {words - progs_words(UkfParams()):,} words" in text and f"{words:,} words in all" in text
+
+
+def progs_words(p) -> int:
+    return programs(p).layout.size
 
 
 def test_regenerate_command(generated, tmp_path):
