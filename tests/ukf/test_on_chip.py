@@ -111,6 +111,7 @@ def test_regenerate_command(generated, tmp_path):
             assert p.read_bytes() == (tmp_path / p.name).read_bytes(), p.name
 
 
+@pytest.mark.full
 @pytest.mark.verilator
 @pytest.mark.xdist_group("ukf_on_chip")
 def test_rtl_iterations(generated):
@@ -122,11 +123,13 @@ def test_rtl_iterations(generated):
     run_ukf(model, generated, "ukf_oc", ["on_chip_iterations"], "on_chip", {"KFGEN_TB_ITERATIONS": "3"})
 
 
+@pytest.mark.full
 @pytest.mark.verilator
 @pytest.mark.xdist_group("ukf_on_chip")
 def test_c_processor(generated, tmp_path):
-    """The generated C driver's TOP_iterate(dev, u, z) on the same build: every word against
-    the golden model, and the estimates those of the golden model's on-chip core."""
+    """The generated C driver's TOP_iterate(dev, u, z) on the nanosatellite's build (with a
+    control input): every word against the golden model, and the estimates those of the
+    golden model's on-chip core. (In make test, on the small core: test_streams_rtl.)"""
     from kfgen.sim.ukf.run import build_driver, run_cosim
     model = build_ukf_core(generated, "ukf_oc", VERILATOR_CACHE)
     driver = build_driver(generated, "ukf_oc", tmp_path)
@@ -202,12 +205,23 @@ def test_streams_manifest(streams_core):
 def test_streams_rtl(streams_core):
     """Lint clean; measurements in on s_axis and estimates out on m_axis (cocotbext-axi, with
     backpressure), word for word, the latency the manifest's; then the bus-driven iteration
-    on the same core."""
+    on the same core, by the Python software side and by the generated C driver."""
     rc, messages = lint(streams_core / "ukf_st.v")
     assert rc == 0 and not messages, "\n".join(messages)
     model = build_ukf_core(streams_core, "ukf_st", VERILATOR_CACHE)
     run_ukf(model, streams_core, "ukf_st", ["stream_iterations", "on_chip_iterations"], "streams",
             {"KFGEN_TB_ITERATIONS": "4"})
+    # the C driver's TOP_iterate(dev, u, z) on the same build, its estimates the golden model's
+    from kfgen.sim.ukf.app import load_app
+    from kfgen.sim.ukf.run import build_driver, run_cosim
+    spec = f"{streams_core / 'drift.py'}:Drift"
+    npz = streams_core / "c.npz"
+    run_cosim(model, streams_core, "ukf_st", "c_processor", "c_on_chip", spec, 3, seed=2, out=npz,
+              driver=build_driver(streams_core, "ukf_st", streams_core))
+    app = load_app(spec)
+    with np.load(npz) as d:
+        assert list(d["cycles_columns"]) == ["iteration", "transfer"]
+        assert np.array_equal(d["estimates"], run_golden(app, checked_scenario(app, 3, 2), on_chip=spec))
 
 
 @pytest.mark.full
@@ -311,7 +325,8 @@ def test_ukf_page_table_is_the_schedules():
     from helpers import ROOT
     text = (ROOT / "docs" / "ukf.md").read_text()
     section = text.split("## The whole iteration on chip", 1)[1].split("\n## ", 1)[0]
-    rows = [r for r in section.splitlines() if r.startswith("| ") and r[2].isdigit()]
+    table = section.split("| P | on chip: iteration |", 1)[1].split("\n\n", 1)[0]
+    rows = [r for r in table.splitlines() if r.startswith("| ") and r[2].isdigit()]
     assert len(rows) == 4
     for row in rows:
         pes, chip, steps, fmas = (int(c.strip().replace(",", "")) for c in row.strip("|").split("|"))
