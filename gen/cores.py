@@ -101,9 +101,8 @@ def _ukf_documents(params):
               f"{width} bits wide in a {spec.field_bits}-bit slot. */",
               f"#define {top.upper()}_S_AXIS_TDATA_WIDTH {spec.in_width}u",
               f"#define {top.upper()}_M_AXIS_TDATA_WIDTH {spec.out_width}u"]
-    for port, names in (("s_axis", spec.in_names), ("m_axis", spec.out_names)):
-        for i, name in enumerate(names):
-            lo = i * spec.field_bits
+    for port, fields in spec.fields().items():
+        for name, lo in fields:
             md.append(f"| `{port}_tdata` | {name} | {lo + width - 1}:{lo} |")
             ident = name.upper().replace("[", "").replace("]", "").replace(",", "_")
             macros.append(f"#define {top.upper()}_{port.upper()}_{ident}_LSB {lo}u")

@@ -91,6 +91,12 @@ class StreamSpec:
     def field_bits_of(width: int) -> int:
         return (width + 7) // 8 * 8
 
+    def fields(self) -> dict[str, list[tuple[str, int]]]:
+        """``s_axis``/``m_axis`` -> (name, lsb) of each field, element 0 in the lowest bits."""
+        return {port: [(name, i * self.field_bits) for i, name in enumerate(names)]
+                for port, names in (("s_axis", self.in_names), ("m_axis", self.out_names))}
+
+
 def stream_members(spec: StreamSpec) -> dict:
     """The AXI4-Stream ports of ``spec``, named as cocotbext-axi's ``AxiStreamBus.from_prefix``
     and Vivado's interface inference expect them."""
@@ -110,8 +116,8 @@ class Backend(wiring.Component):
     engine : Engine
         The engine of ``params``' step programs (its memory is the buffer, from word 0).
     rmap : RegisterMap
-        The core's map. ``CTRL.step`` names the
-        engine's steps in order, with consecutive values from any first one; without that field the engine has one step. Every ``ro``
+        The core's map. ``CTRL.step`` names the engine's steps in order, with consecutive
+        values from any first one; without that field the engine has one step. Every ``ro``
         memory answers writes with SLVERR.
 
     Members
@@ -204,13 +210,10 @@ class Backend(wiring.Component):
 
         # control: start (the step in the same write), soft reset
         first = f_step.values[0].value if f_step else 0  # CTRL.step of the engine's step 0
+        known, index = new_step < first + len(eng.step_names), new_step
         if first:
-            known = (new_step >= first) & (new_step < first + len(eng.step_names))
-            m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step - first),
-                         eng.halt.eq(do_reset)]
-        else:
-            known = new_step < len(eng.step_names)
-            m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(new_step), eng.halt.eq(do_reset)]
+            known, index = known & (new_step >= first), new_step - first
+        m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(index), eng.halt.eq(do_reset)]
         with m.If(byte0 & is_reg["CTRL"] & ~refused_start):
             m.d.sync += step.eq(new_step)
 

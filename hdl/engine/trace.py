@@ -45,6 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..linalg.program import OPS, Dot
+
 __all__ = ["TraceError", "T", "Model", "trace", "TRACED_NUMPY"]
 
 
@@ -395,12 +397,10 @@ class Model:
     ``("const", value)``; temporaries in :attr:`shared` read no per-point input (they are
     computed once, for every point)."""
 
-    inputs: dict  # name -> length
     outputs: int
     ops: list = field(default_factory=list)
     temps: int = 0
     shared: set = field(default_factory=set)  # tmp indices computed once for all points
-    varying_inputs: frozenset = frozenset()
 
     @property
     def consts(self) -> list[float]:
@@ -419,18 +419,20 @@ class Model:
     def op_is_shared(self, op) -> bool:
         return op[1][0] == "tmp" and op[1][1] in self.shared
 
-    def instantiate(self, emit, addr, *, shared_done: bool) -> None:
-        """Emit the operations through ``emit(kind, dst, *operands)`` with every word mapped
-        by ``addr(word)`` to an address; the shared ones only when not ``shared_done``."""
+    def program_ops(self, addr, *, shared_done: bool) -> list:
+        """The operations as the engine's IR (:mod:`kfgen.hdl.linalg.program`), every word
+        mapped by ``addr(word)`` to an address; the shared ones only when not ``shared_done``."""
+        out = []
         for op in self.ops:
             if self.op_is_shared(op) and shared_done:
                 continue
             kind, dst = op[0], addr(op[1])
             if kind == "dot":
                 init = None if op[2] is None else addr(op[2])
-                emit("dot", dst, init, [(addr(a), addr(b), neg) for a, b, neg in op[3]])
+                out.append(Dot(dst, init, [(addr(a), addr(b), neg) for a, b, neg in op[3]]))
             else:
-                emit(kind, dst, *(addr(w) for w in op[2:]))
+                out.append(OPS[kind](dst, *(addr(w) for w in op[2:])))
+        return out
 
 
 def _reads(op):
@@ -508,7 +510,7 @@ class _Lowering:
         return ("dot", init, tuple(out))
 
 
-def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> tuple[Model, list]:
+def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Model:
     """Trace ``fn`` (called with one traced array per entry of ``inputs``, name -> length, in
     order) into a :class:`Model`; ``varying`` names the inputs that differ from point to point
     (all by default). Inside ``fn``, and inside ``scope`` (a function whose module's globals
@@ -558,5 +560,4 @@ def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> tup
             low.ensure(key, dst=("out", k))
         else:
             low._emit(("copy", ("out", k), low.ensure(key)))
-    model = Model(dict(inputs), len(outs), low.ops, low.temps, low.shared, low.varying_inputs)
-    return model, outs
+    return Model(len(outs), low.ops, low.temps, low.shared)

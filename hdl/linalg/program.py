@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from . import isa
 from .isa import Check
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "UNITS"]
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "UNITS", "OPS"]
 
 #: The executing units' names, in the program store's order (:data:`.isa.UNITS`).
 UNITS = tuple(isa.UNITS)
@@ -229,6 +229,10 @@ class Copy:
     @property
     def unit(self) -> str:
         return "copy"
+
+
+#: The operation class of each unit but the FMA's (:class:`Dot`), by the unit's name.
+OPS = {cls.UNIT: cls for cls in (Div, Max, Sqrt, Exp)} | {"copy": Copy}
 
 
 @dataclass

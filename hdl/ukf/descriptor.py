@@ -51,13 +51,14 @@ def _streams(core) -> dict:
     if spec is None:
         return {}
 
-    def fields(names):
-        return [{"name": nm, "lsb": i * spec.field_bits, "width": core.params.fmt.width}
-                for i, nm in enumerate(names)]
+    width, fields = core.params.fmt.width, spec.fields()
+
+    def listed(port):
+        return [{"name": name, "lsb": lsb, "width": width} for name, lsb in fields[port]]
     return {"streams": {
-        "s_axis": {"tdata_width": spec.in_width, "fields": fields(spec.in_names),
+        "s_axis": {"tdata_width": spec.in_width, "fields": listed("s_axis"),
                    "meaning": "one measurement: the core writes z and u, runs iteration"},
-        "m_axis": {"tdata_width": spec.out_width, "fields": fields(spec.out_names),
+        "m_axis": {"tdata_width": spec.out_width, "fields": listed("m_axis"),
                    "tuser": {"err_pivot": 0, "err_nan": 1},
                    "meaning": "the estimate after that iteration: x, then the diagonal of P"},
         "latency_cycles": core.cycles("iteration") + spec.latency(),

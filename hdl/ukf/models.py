@@ -35,9 +35,7 @@ def set_loader(loader) -> None:
 class UkfModels:
     """The traced f and h of an application, and its control input's length."""
 
-    spec: str
     nu: int
-    dt: float
     f: Model
     h: Model
 
@@ -71,12 +69,12 @@ def compile_models(spec: str, sizes: tuple[int, int, int, int]) -> UkfModels:
     nu = int(getattr(app, "nu", 0))
     cls = type(app)
     try:
-        f, _ = trace(lambda x, w, u: app.f(x, w, u, app.dt), {"x": n, "w": nw, "u": nu},
-                     varying=("x", "w"), name=f"{cls.__name__}.f", scope=cls.f)
-        h, _ = trace(app.h, {"x": n, "v": nv}, name=f"{cls.__name__}.h", scope=cls.h)
+        f = trace(lambda x, w, u: app.f(x, w, u, app.dt), {"x": n, "w": nw, "u": nu},
+                  varying=("x", "w"), name=f"{cls.__name__}.f", scope=cls.f)
+        h = trace(app.h, {"x": n, "v": nv}, name=f"{cls.__name__}.h", scope=cls.h)
     except TraceError as exc:
         raise ParamError("app", str(exc)) from None
     for what, model, want in (("f", f, n), ("h", h, m)):
         if model.outputs != want:
             raise ParamError("app", f"{cls.__name__}.{what} returns {model.outputs} numbers, not {want}")
-    return UkfModels(spec, nu, float(app.dt), f, h)
+    return UkfModels(nu, f, h)

@@ -31,7 +31,7 @@ from math import isqrt
 from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
-from ..linalg.program import Copy, Div, Dot, Exp, Layout, Max, Program, Sqrt
+from ..linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
 from .params import UkfParams
 
 __all__ = ["UkfPrograms", "build_ukf", "simplex_rows"]
@@ -272,9 +272,6 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u))
 
 
-_OPS = {"div": Div, "sqrt": Sqrt, "exp": Exp, "max": Max, "copy": Copy}
-
-
 def _iteration(params, models, lay, sg, pr, up, u) -> Program:
     """One whole iteration: sig_gen, f on every sigma point into sigma_points_f, predict, h
     on every moved point into sigma_points_h, update (:mod:`.models`). Each point's
@@ -295,13 +292,6 @@ def _iteration(params, models, lay, sg, pr, up, u) -> Program:
         ts = lay.add(f"{label}_shared", len(shared)) if shared else None
         tp = lay.add(f"{label}_temps", N, len(own)) if own else None
         sidx, oidx = {t: k for k, t in enumerate(shared)}, {t: k for k, t in enumerate(own)}
-
-        def emit(kind, dst, *operands):
-            if kind == "dot":
-                it.emit(Dot(dst, operands[0], operands[1]))
-            else:
-                it.emit(_OPS[kind](dst, *operands))
-
         for i in range(N):
             def addr(w, i=i):
                 if w[0] == "const":
@@ -311,13 +301,14 @@ def _iteration(params, models, lay, sg, pr, up, u) -> Program:
                 if w[0] == "tmp":
                     return ts(sidx[w[1]]) if w[1] in sidx else tp(i, oidx[w[1]])
                 return inputs(i, w[1], w[2])
-            model.instantiate(emit, addr, shared_done=i > 0)
+            for op in model.program_ops(addr, shared_done=i > 0):
+                it.emit(op)
 
-    def f_inputs(i, name, k):
-        return {"x": lambda: chi(i, k), "w": lambda: chi(i, n + k), "u": lambda: u(k)}[name]()
+    def f_inputs(i, name, k):  # x and w: the point's parts; u: the iteration's
+        return chi(i, k) if name == "x" else chi(i, n + k) if name == "w" else u(k)
 
-    def h_inputs(i, name, k):
-        return {"x": lambda: chif(i, k), "v": lambda: chi(i, n + nw + k)}[name]()
+    def h_inputs(i, name, k):  # x: the moved point; v: the point's measurement-noise part
+        return chif(i, k) if name == "x" else chi(i, n + nw + k)
 
     apply(models.f, "f", f_inputs, chif)
     it.ops.extend(pr.ops)

@@ -94,7 +94,7 @@ async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z, on_chip: bool = 
         When a step reports a covariance that is not positive definite or a NaN.
     """
     if on_chip:
-        if getattr(app, "nu", 0):
+        if app.nu:
             await io.write("u", to_words(fmt, np.ravel(np.asarray(u, dtype=np.float64))))
         await io.write("z", to_words(fmt, np.ravel(np.asarray(z, dtype=np.float64))))
         await _step(io, "iteration")
