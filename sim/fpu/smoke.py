@@ -1,6 +1,7 @@
 """Vectors of a floating-point unit's smoke testbench (``TOP_tb.v``): special and random
 operands, results and flags from the exact reference (:mod:`kfgen.sim.float_ref`; ``exp``
-from its bit-exact model, on inputs at the edges of its range)."""
+from its bit-exact model, on inputs at the edges of its range; ``sin``, ``cos`` and ``atan2``
+from theirs, on specials and random words)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from kfgen.hdl.arith.float.format import FloatFormat
 from ..float_ref import directed_corpus, random_operands, ref_op
 from .exp_exact import directed_words
 from .exp_model import exp_model
+from .trig_model import trig_model
 
 __all__ = ["smoke_plan"]
 
@@ -28,6 +30,16 @@ def smoke_plan(params, manifest: dict) -> dict:
         words = directed_words(fmt)
         sets = [(int(w),) for w in words[::max(1, len(words) // (DIRECTED + RANDOM))][:DIRECTED + RANDOM]]
         ys, flags = exp_model(fmt, [s[0] for s in sets], params.subnormals)
+        results = [(int(y), int(f)) for y, f in zip(ys, flags)]
+    elif params.op in ("sin", "cos", "atan2"):
+        arity = len(names)
+        special = [0, fmt.sign_mask, fmt.inf(0), fmt.canonical_nan, fmt.min_normal, fmt.max_finite,
+                   fmt.pack(0, fmt.bias, 0), fmt.pack(1, fmt.bias + 1, 1)]
+        rng = np.random.default_rng(1)
+        words = special + [int(w) >> max(0, 62 - fmt.width) for w in rng.integers(0, 1 << 62, size=RANDOM)]
+        sets = [tuple(int(words[(i + 3 * k) % len(words)]) for k in range(arity)) for i in range(len(words))]
+        ys, flags = trig_model(params.op, fmt, [s[0] for s in sets],
+                               [s[1] for s in sets] if arity == 2 else None, params.subnormals)
         results = [(int(y), int(f)) for y, f in zip(ys, flags)]
     else:
         corpus = directed_corpus(fmt, params.op)

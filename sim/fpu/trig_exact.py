@@ -36,28 +36,21 @@ def _value(fn: str, a: Fraction, b: Fraction | None, prec: int):
         return mpmath.atan2(x, mpmath.mpf(b.numerator) / b.denominator)
 
 
-def _round_signed(f, v: Fraction) -> tuple[int, int, int, int]:
-    """``(rn, flags, down, up)`` for a nonzero rational ``v``: ``down``/``up`` the floats
-    just below and above ``|v|`` with ``v``'s sign (``down`` toward zero)."""
-    sign = (v < 0) << (f.width - 1)
-    v = abs(v)
-    word, flags, down = _round_ratio(f, v.numerator, v.denominator)
-    return word | sign, flags, down | sign, (down + 1) | sign
-
-
 def _exact_finite(f, fn, a: Fraction, b: Fraction | None):
     prec = f.p + 40
     while True:
         v = _value(fn, a, b, prec)
         man, exp = v.man_exp if v else (0, 0)  # |man|: the sign apart
-        man = -man if v < 0 else man
         if man == 0:
             raise AssertionError("a transcendental result is never zero")
-        centre = Fraction(man) * Fraction(2) ** exp
-        err = abs(centre) * Fraction(4, 1 << prec)
-        lo, hi = _round_signed(f, centre - err), _round_signed(f, centre + err)
-        if (centre - err > 0) == (centre + err > 0) and lo[:3] == hi[:3]:
-            return lo
+        # |v| within 4 units of its last bit: man (2**prec -+ 4) 2**(exp - prec), as num / den.
+        shift = exp - prec
+        scale, den = (1 << shift, 1) if shift >= 0 else (1, 1 << -shift)
+        lo = _round_ratio(f, man * ((1 << prec) - 4) * scale, den)
+        hi = _round_ratio(f, man * ((1 << prec) + 4) * scale, den)
+        if lo == hi:
+            sign = int(v < 0) << (f.width - 1)
+            return lo[0] | sign, lo[1], lo[2] | sign, (lo[2] + 1) | sign
         prec += 32
 
 

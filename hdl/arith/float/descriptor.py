@@ -9,10 +9,17 @@ from .params import CLOCK_MHZ, OPS, FpuParams, ranges_text
 __all__ = ["CORE"]
 
 
+def _trig_latency(op: str, fmt: str = "binary32") -> int:
+    from .params import stages_range
+    return stages_range(op, fmt)[0]
+
+
 def _docs() -> dict[str, Doc]:
     return {
         "op": Doc("operation: a+b, a-b, a*b, a/b, sqrt(a), a*b+c with one rounding, int32 to float, "
-                  "float to int32 (round to nearest even, saturating), e**a (faithfully rounded)", "",
+                  "float to int32 (round to nearest even, saturating), e**a, sin(a), cos(a), atan2(a, b) "
+                  "(a is y, b is x; the last four faithfully rounded; sin, cos and atan2 iterative: "
+                  "one operation per latency, with i_ready)", "",
                   "one of " + ", ".join(OPS) + " (any case)"),
         "format": Doc("floating-point format", "",
                       "binary16, bfloat16, binary32, binary64, or eEmM with E exponent bits (3..15) "
@@ -24,7 +31,9 @@ def _docs() -> dict[str, Doc]:
                       f"{CLOCK_MHZ} MHz on an ECP5-85 in binary32 (iterative div/sqrt: the "
                       "recurrence's block sets the clock, slower the fewer cycles_per_op)", "cycles",
                       "an integer in a range that depends on op, format, subnormals and cycles_per_op; "
-                      f"in binary32: {ranges_text('stages')}"),
+                      f"in binary32: {ranges_text('stages')}; sin, cos and atan2 take only their "
+                      "latency (binary32: sin/cos " + str(_trig_latency('sin')) + ", atan2 "
+                      + str(_trig_latency('atan2')) + ")"),
         "cycles_per_op": Doc("div and sqrt: cycles per operation; 1 fully pipelined, K > 1 iterative "
                              "and smaller, with i_ready backpressure", "cycles",
                              "an integer in a range that depends on op and format; in binary32: "
@@ -36,7 +45,7 @@ def _docs() -> dict[str, Doc]:
 
 CORE = CoreDescriptor(
     name="fpu",
-    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i, exp) in any format",
+    summary="one IEEE-754 floating-point unit (add, sub, mul, div, sqrt, fma, i2f, f2i, exp, sin, cos, atan2) in any format",
     params=FpuParams,
     docs=_docs,
     build=lambda p: p.build(),

@@ -30,6 +30,9 @@ OPS = {
     "i2f": (("i_a",), False, False),
     "f2i": (("i_a",), True, False),
     "exp": (("i_a",), False, False),
+    "sin": (("i_a",), False, False),
+    "cos": (("i_a",), False, False),
+    "atan2": (("i_a", "i_b"), False, False),
 }
 
 
@@ -42,8 +45,10 @@ def _unit_class(op: str):
     from .i2f import IntToFloat
     from .mul import FloatMul
     from .sqrt import FloatSqrt
+    from .trig import FloatAtan2, FloatCos, FloatSin
     return {"add": FloatAdd, "sub": FloatSub, "mul": FloatMul, "div": FloatDiv, "sqrt": FloatSqrt,
-            "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt, "exp": FloatExp}[op]
+            "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt, "exp": FloatExp,
+            "sin": FloatSin, "cos": FloatCos, "atan2": FloatAtan2}[op]
 
 
 def _unit_args(op: str, subnormals: str, stages: int | None, cycles_per_op: int) -> dict:
@@ -96,7 +101,8 @@ class FpuParams:
     Parameters
     ----------
     op : str
-        ``add``, ``sub``, ``mul``, ``div``, ``sqrt``, ``fma``, ``i2f``, ``f2i`` or ``exp``.
+        ``add``, ``sub``, ``mul``, ``div``, ``sqrt``, ``fma``, ``i2f``, ``f2i``, ``exp``, ``sin``,
+        ``cos`` or ``atan2`` (``atan2(a, b)``: ``a`` is ``y``, ``b`` is ``x``).
     format : str
         ``binary16``, ``bfloat16``, ``binary32``, ``binary64`` or ``eEmM``.
     subnormals : str
@@ -144,7 +150,10 @@ class FpuParams:
             hint = "" if OPS[op][2] else ": only div and sqrt are iterative"
             raise ParamError("cycles_per_op", f"must be an integer in {lo}..{hi} for {op} {fmt}, "
                                                  f"not {self.cycles_per_op!r}{hint}")
-        lo, hi = stages_range(op, fmt, subnormals, self.cycles_per_op)
+        try:
+            lo, hi = stages_range(op, fmt, subnormals, self.cycles_per_op)
+        except ValueError as exc:  # a format the unit cannot take (sin, cos, atan2)
+            raise ParamError("format", str(exc)) from None
         if self.stages is not None and not _in_range(self.stages, lo, hi):
             what = f"{op} {fmt}" + (", ftz" if subnormals == "ftz" else "") \
                 + (f", cycles_per_op {self.cycles_per_op}" if self.cycles_per_op > 1 else "")

@@ -116,7 +116,8 @@ class _TrigUnit(wiring.Component):
 def _cordic_step(m, en, x, y, z, i, table, rotate: bool):
     """One CORDIC step (shifts by ``i``), as :func:`kfgen.sim.fpu.trig_model._cordic`."""
     up = ~z[-1] if rotate else y[-1]
-    a = Array(C(v, len(z)) for v in table)[i]
+    entries = tuple(table) + (0,) * ((1 << len(i)) - len(table))  # every index covered
+    a = Array(C(v, len(z)) for v in entries)[i]
     xs, ys = x >> i, y >> i
     with m.If(en):
         with m.If(up):
@@ -303,7 +304,7 @@ class FloatAtan2(_TrigUnit):
                        Mux(x.is_zero, pi2, Mux(~sx, signed_zero, pi)))))
         nan_flags = Mux(y.is_snan | x.is_snan, FLAG_NV, 0)
         special_flags = Mux(y.is_nan | x.is_nan, nan_flags,
-                            Mux((y.is_zero | x.is_inf) & ~sx, 0, FLAG_NX))
+                            Mux((y.is_zero | x.is_inf & ~y.is_inf) & ~sx, 0, FLAG_NX))
         special = y.is_nan | x.is_nan | y.is_zero | y.is_inf | x.is_zero | x.is_inf
         direct, d_word, d_flags, r_sign, neg_x = Signal(), Signal(fmt.width), Signal(5), Signal(), Signal()
         with m.If(cnt == 1):
