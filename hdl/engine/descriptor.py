@@ -5,6 +5,7 @@ buffer, and the manifest's ``cycles`` and ``engine`` entries."""
 from __future__ import annotations
 
 from ..describe import Doc
+from ..linalg import isa
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
 
 __all__ = ["engine_docs", "engine_waivers", "engine_manifest", "CYCLES_DEFINITION"]
@@ -54,13 +55,19 @@ def engine_manifest(core) -> dict:
     first = next(iter(scheds.values()))
     layout, mc = first.program.layout, first.machine
     roms = core.program_roms
-    uses_exp = any(op.unit == "exp" for s in scheds.values() for op in s.program.ops)
+    used = {op.unit for s in scheds.values() for op in s.program.ops}
+    optional = {}  # the latency (and interval) of each optional unit the programs use
+    for name, u in isa.UNITS.items():
+        if u.optional and u.latency is not None and name in used:
+            optional[u.latency] = getattr(mc, u.latency)
+            if u.interval is not None:
+                optional[u.interval] = getattr(mc, u.interval)
     return {
         "cycles": {name: core.cycles(name) for name in scheds},
         "cycles_definition": CYCLES_DEFINITION,
         "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register,
                    "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
-                   "sqrt_latency": mc.sqrt_latency, **({"exp_latency": mc.exp_latency} if uses_exp else {}),
+                   "sqrt_latency": mc.sqrt_latency, **optional,
                    "div_interval": mc.div_interval, "sqrt_interval": mc.sqrt_interval, "banks": mc.banks,
                    "memory_words": layout.size,
                    "program_store": {"instructions": sum(words for words, _ in roms.values()),

@@ -89,7 +89,8 @@ class T:
     """A traced scalar: ``c0 + sum(coef * w1 [* w2])`` over words.
 
     A word is a hashable key: ``("in", name, k)`` (the function's inputs), ``("const", v)``,
-    or an operation on words (``("div", a, b)``, ``("sqrt", a)``, ``("exp", a)``,
+    or an operation on words (``("div", a, b)``, ``("sqrt", a)``, ``("exp", a)``, ``("sin", a)``,
+    ``("cos", a)``, ``("atan2", y, x)``,
     ``("max", a, b)``, ``("lin", terms, c0)`` for a sum computed into a word of its own).
     Equal keys are the same value, computed once."""
 
@@ -246,6 +247,15 @@ class T:
     def exp(self):
         return _exp(self)
 
+    def sin(self):
+        return _sin(self)
+
+    def cos(self):
+        return _cos(self)
+
+    def arctan2(self, other):
+        return _atan2(self, other)
+
     def __abs__(self):
         return _abs(self)
 
@@ -275,6 +285,15 @@ def _exp_build(a):
 
 _sqrt = _unary("sqrt", math.sqrt, _sqrt_build)
 _exp = _unary("exp", math.exp, _exp_build)
+_sin = _unary("sin", math.sin, lambda a: T.word(("sin", a.key())))
+_cos = _unary("cos", math.cos, lambda a: T.word(("cos", a.key())))
+
+
+def _atan2(y, x):
+    if _const(y) and _const(x):
+        return math.atan2(float(y), float(x))
+    y, x = T.lift(y), T.lift(x)
+    return T.word(("atan2", y.key(), x.key()))
 
 
 def _max(a, b):
@@ -361,9 +380,12 @@ _CALLS = {
     "minimum": _elementwise("minimum", _min, 2),
     "maximum": _elementwise("maximum", _max, 2),
     "hypot": _elementwise("hypot", _hypot, 2),
+    "sin": _elementwise("sin", _sin, 1),
+    "cos": _elementwise("cos", _cos, 1),
+    "arctan2": _elementwise("arctan2", _atan2, 2),
 }
 
-_NO_UNIT = ("sin", "cos", "tan", "arctan2", "arctan", "arcsin", "arccos", "log", "log2", "log10", "tanh",
+_NO_UNIT = ("tan", "arctan", "arcsin", "arccos", "log", "log2", "log10", "tanh",
             "sinh", "cosh", "power", "fmod", "floor", "ceil", "round", "sign")
 
 
@@ -393,6 +415,7 @@ class Model:
 
     ``ops`` are tuples in program order: ``("dot", dst, init, ((a, b, neg), ...))``,
     ``("div", dst, a, b)``, ``("sqrt", dst, a)``, ``("exp", dst, a)``, ``("max", dst, a, b)``,
+    ``("sin", dst, a)``, ``("cos", dst, a)``, ``("atan2", dst, y, x)``,
     ``("copy", dst, src)``. A word is ``("in", name, k)``, ``("out", k)``, ``("tmp", k)`` or
     ``("const", value)``; temporaries in :attr:`shared` read no per-point input (they are
     computed once, for every point)."""
@@ -510,6 +533,10 @@ class _Lowering:
         return ("dot", init, tuple(out))
 
 
+#: Word kinds an operation computes (an output of one of them is written in place, no copy).
+_COMPUTED = ("lin",) + tuple(k for k in OPS if k != "copy")
+
+
 def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Model:
     """Trace ``fn`` (called with one traced array per entry of ``inputs``, name -> length, in
     order) into a :class:`Model`; ``varying`` names the inputs that differ from point to point
@@ -556,7 +583,7 @@ def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Mod
     low = _Lowering(frozenset(inputs if varying is None else varying))
     for k, t in enumerate(outs):
         key = t.key()
-        if key[0] in ("lin", "div", "sqrt", "exp", "max") and key not in low.addr:
+        if key[0] in _COMPUTED and key not in low.addr:
             low.ensure(key, dst=("out", k))
         else:
             low._emit(("copy", ("out", k), low.ensure(key)))

@@ -67,6 +67,13 @@ def _exp(fmt, stages, cycles_per_op):
     return FloatExp(fmt, stages=stages)
 
 
+def _trig(name):
+    def build(fmt, stages, cycles_per_op):
+        from ..arith.float import trig
+        return {"sin": trig.FloatSin, "cos": trig.FloatCos, "atan2": trig.FloatAtan2}[name](fmt, stages=stages)
+    return build
+
+
 def _copy_word(fmt, a):
     return a, None
 
@@ -137,6 +144,9 @@ UNITS: dict[str, Unit] = {u.name: u for u in (
     Unit("copy", ("a",), None, word=_copy_word),
     Unit("exp", ("a",), "exp_latency", optional=True, hardware=_exp),
     Unit("max", ("a", "b"), None, optional=True, word=_max_word),
+    Unit("sin", ("a",), "sin_latency", "sin_interval", optional=True, hardware=_trig("sin")),
+    Unit("cos", ("a",), "cos_latency", "cos_interval", optional=True, hardware=_trig("cos")),
+    Unit("atan2", ("a", "b"), "atan2_latency", "atan2_interval", optional=True, hardware=_trig("atan2")),
 )}
 
 

@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 from . import isa
 from .isa import Check
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Program", "UNITS", "OPS"]
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Sin", "Cos", "Atan2", "Program",
+           "UNITS", "OPS"]
 
 #: The executing units' names, in the program store's order (:data:`.isa.UNITS`).
 UNITS = tuple(isa.UNITS)
@@ -231,8 +232,27 @@ class Copy:
         return "copy"
 
 
+class Sin(_Unary):
+    """``dst = sin(a)`` on the shared iterative sine (faithfully rounded, :class:`FloatSin`)."""
+
+    UNIT = "sin"
+
+
+class Cos(_Unary):
+    """``dst = cos(a)`` on the shared iterative cosine (faithfully rounded, :class:`FloatCos`)."""
+
+    UNIT = "cos"
+
+
+class Atan2(_Binary):
+    """``dst = atan2(a, b)`` (``a`` is y, ``b`` is x) on the shared iterative arctangent
+    (faithfully rounded, :class:`FloatAtan2`)."""
+
+    UNIT = "atan2"
+
+
 #: The operation class of each unit but the FMA's (:class:`Dot`), by the unit's name.
-OPS = {cls.UNIT: cls for cls in (Div, Max, Sqrt, Exp)} | {"copy": Copy}
+OPS = {cls.UNIT: cls for cls in (Div, Max, Sqrt, Exp, Sin, Cos, Atan2)} | {"copy": Copy}
 
 
 @dataclass

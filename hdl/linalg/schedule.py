@@ -57,6 +57,10 @@ LANE_READ_LATENCY = 3
 UNIT_REGISTER = 1
 
 
+#: The machine fields of the trigonometric units' latencies and initiation intervals.
+TRIG_FIELDS = tuple(f"{fn}_{what}" for fn in ("sin", "cos", "atan2") for what in ("latency", "interval"))
+
+
 @dataclass(frozen=True)
 class Machine:
     """The engine's timing. ``pes=None``: unlimited resources (the chain bound)."""
@@ -71,6 +75,12 @@ class Machine:
     div_interval: int = 1  # cycles between issues: an iterative unit's cycles_per_op
     sqrt_interval: int = 1
     exp_latency: int = 1  # the exponential's pipeline (only programs with Exp use it)
+    sin_latency: int = 1  # the iterative sin, cos and atan2 (only programs with them use them)
+    sin_interval: int = 1
+    cos_latency: int = 1
+    cos_interval: int = 1
+    atan2_latency: int = 1
+    atan2_interval: int = 1
     unit_register: int = UNIT_REGISTER  # added to every unit's latency but the FMA's
 
     def __post_init__(self):
@@ -78,7 +88,7 @@ class Machine:
                                      or self.pes < 1):
             raise ValueError(f"pes must be a positive integer or None, not {self.pes!r}")
         for k in ("fma_latency", "div_latency", "sqrt_latency", "read_latency", "ports", "div_interval",
-                  "sqrt_interval", "exp_latency", "unit_register"):
+                  "sqrt_interval", "exp_latency", "unit_register", *TRIG_FIELDS):
             v, lo = getattr(self, k), 0 if k in ("read_latency", "unit_register") else 1
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise ValueError(f"{k} must be an integer of at least {lo}, not {v!r}")
@@ -97,7 +107,7 @@ class Machine:
         """Unlimited PEs, banks and ports, and a divider and square root per operation."""
         return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
                        None, self.ports, self.read_latency, exp_latency=self.exp_latency,
-                       unit_register=self.unit_register)
+                       unit_register=self.unit_register, **{k: getattr(self, k) for k in TRIG_FIELDS})
 
 
 @dataclass(frozen=True)

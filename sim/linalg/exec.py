@@ -16,6 +16,7 @@ from kfgen.hdl.linalg.isa import Check
 from kfgen.hdl.linalg.program import Dot, Program
 from kfgen.sim.float_ref import ref_op
 from kfgen.sim.fpu.exp_model import exp_model
+from kfgen.sim.fpu.trig_model import trig_word
 
 __all__ = ["Status", "run", "GOLDEN", "max_value", "to_words", "from_words"]
 
@@ -78,6 +79,9 @@ GOLDEN = {
     "copy": lambda fmt, a, subnormals: (a, 0),
     "exp": _exp,
     "max": _max,
+    "sin": lambda fmt, a, subnormals: trig_word("sin", fmt, a, None, subnormals),
+    "cos": lambda fmt, a, subnormals: trig_word("cos", fmt, a, None, subnormals),
+    "atan2": lambda fmt, a, b, subnormals: trig_word("atan2", fmt, a, b, subnormals),
 }
 
 

@@ -93,7 +93,8 @@ def _model_fn(x, w, u):
     return np.r_[v, np.hypot(v[0], v[1]), np.exp(-x[2] ** 2 / 2), abs(x[3]), np.minimum(x[2], x[3]),
                  (x[0] + 1.5) ** -2, np.dot(x[:2], u) / (1.0 + x[1] * x[1]), np.cross(x[:3], u[[0, 1, 0]]),
                  y, np.sum(stacked, axis=0), np.square(x[3]) - x[3] ** 3 + +x[0] - (-x[1]),
-                 np.absolute(x[2]) * 0.0 + 1.0 * np.sqrt(x[0] * x[0] + 2.0)]
+                 np.absolute(x[2]) * 0.0 + 1.0 * np.sqrt(x[0] * x[0] + 2.0),
+                 np.sin(x[0]) * np.cos(x[1]), np.cos(3.0 * x[2]), np.arctan2(x[3], -x[0] + w[0])]
 
 
 def test_traced_function_computes_the_function():
@@ -147,8 +148,22 @@ def test_numpy_outside_the_list_is_refused():
 
 def test_functions_without_a_unit_are_refused():
     def f(x, u):
-        return np.array([np.sin(x[0]), np.arctan2(x[1], x[0])])
-    _refused(f, "np.sin", "no unit")
+        return np.array([np.tan(x[0]), np.arctan(x[1])])
+    _refused(f, "np.tan", "no unit")
+
+
+def test_trigonometry_traces_to_its_units():
+    """np.sin, np.cos and np.arctan2 become one operation each on their shared units (common
+    subexpressions once, constants folded)."""
+    def f(x, u):
+        a = np.sin(x[0]) + np.cos(x[0]) * np.sin(x[0])
+        return np.array([a, np.arctan2(x[1], x[0]), np.arctan2(1.0, 2.0) * x[1], np.cos(0.5)])
+    model = trace(f, {"x": 2, "u": 0})
+    kinds = [op[0] for op in model.ops]
+    assert kinds.count("sin") == 1 and kinds.count("cos") == 1 and kinds.count("atan2") == 1
+    atan2 = next(op for op in model.ops if op[0] == "atan2")
+    assert atan2[2:] == (("in", "x", 1), ("in", "x", 0))  # y, then x
+    assert math.atan2(1.0, 2.0) in model.consts and math.cos(0.5) in model.consts
 
 
 def test_non_integer_powers_are_refused():

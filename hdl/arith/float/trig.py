@@ -90,7 +90,7 @@ class _TrigUnit(wiring.Component):
     def _frame(self, m: Module):
         """The counter (0: idle; 1 .. latency - 1: working) and the accept strobe."""
         cnt = Signal(range(self._latency + 1))
-        accept = self.i_valid & (cnt == 0)
+        accept = self.i_valid & self.i_ready
         m.d.comb += self.i_ready.eq(cnt == 0)
         with m.If(accept):
             m.d.sync += cnt.eq(1)
