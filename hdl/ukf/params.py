@@ -140,6 +140,13 @@ class UkfParams:
             if self.app is None:
                 raise ParamError("on_chip", "compiles an application's f and h into the core: give --app MODULE:CLASS")
             models = self.models  # loads and traces the application, or refuses it
+            used = {op[0] for model in (models.f, models.h) for op in model.ops}
+            if used & {"sin", "cos", "atan2"}:
+                from ..arith.float.trig_plan import trig_plan
+                try:
+                    trig_plan(self.format)
+                except ValueError as exc:
+                    raise ParamError("format", str(exc)) from None
             check_work(max(M ** 3, self.m ** 3) // 6 + self.N * models.fma_count, self.pes, "states",
                        at_least=True)
         check_bus(self)
