@@ -291,6 +291,8 @@ def _parser():
                     help="of those, the ones whose whole system is co-simulated (default 1,2)")
     ap.add_argument("--on-chip-pes", type=_pe_list, default=[1, 2],
                     help="P of the cores with the nanosatellite's f and h on chip (part 5; default 1,2)")
+    ap.add_argument("--tracker-pes", type=_pe_list, default=[1, 2],
+                    help="P of the cores with the tracker's f and h on chip, its atan2 unit (part 5; default 1,2)")
     ap.add_argument("--no-on-chip", action="store_true", help="skip part 5 (the on-chip cores)")
     ap.add_argument("--no-sim", action="store_true", help="skip the simulations (no measured cycles, no system)")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
@@ -306,24 +308,39 @@ def _parser():
     return ap
 
 
-#: The application of part 5.
+#: The applications of part 5: the chapter's nanosatellite (Table 1 beside it) and the
+#: range-bearing tracker (its h on the atan2 unit).
 ON_CHIP_APP = "nanosat:Nanosat"
+TRACKER_APP = "tracker:Tracker"
 
 
-def on_chip_rows(pes: list[int], out: Path) -> list[dict]:
-    """Part 5's cores, generated: one row per P."""
-    import kfgen.sim.ukf.app  # noqa: F401 (hands the application loader to hdl)
+def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP) -> list[dict]:
+    """Part 5's cores of ``app``, generated: one row per P."""
+    from kfgen.hdl.linalg.schedule import TRIG_FIELDS
+    from kfgen.sim.ukf.app import load_app  # (also hands the application loader to hdl)
+    sizes = load_app(app).core_parameters()
+    tag = "oc" if app == ON_CHIP_APP else "trk"
     rows = []
     for p in pes:
-        params = UkfParams(app=ON_CHIP_APP, on_chip=True, pes=p, name=f"ukf_oc_p{p}")
+        params = UkfParams(**sizes, app=app, on_chip=True, pes=p, name=f"ukf_{tag}_p{p}")
         work, manifest = write_core(CORE, params, out)
         eng = manifest["engine"]
         mc = Machine(1, eng["fma_latency"], eng["div_latency"], eng["sqrt_latency"],
-                     read_latency=eng["read_latency"], unit_register=eng["unit_register"])
+                     read_latency=eng["read_latency"], unit_register=eng["unit_register"],
+                     div_interval=eng["div_interval"], sqrt_interval=eng["sqrt_interval"],
+                     **{k: eng[k] for k in ("exp_latency", *TRIG_FIELDS) if k in eng})
         prog = programs(params).iteration
-        rows.append({"pes": p, "top": params.name, "work": work, "iteration": manifest["cycles"]["iteration"],
-                     "store_bits": eng["program_store"]["bits"], "on_chip": True, "fmas": prog.fma_count,
-                     "chain": chain_bound(prog, mc)})
+        # an iterative shared unit takes an operation every interval: its operations' total
+        busy = {}
+        for op in prog.ops:
+            if op.unit != "fma":
+                busy[op.unit] = busy.get(op.unit, 0) + mc.interval(op.unit)
+        rows.append({"pes": p, "app": app, "top": params.name, "work": work,
+                     "iteration": manifest["cycles"]["iteration"], "store_bits": eng["program_store"]["bits"],
+                     "on_chip": True, "fmas": prog.fma_count, "chain": chain_bound(prog, mc),
+                     "unit_bound": max(busy.values(), default=0),
+                     "units": sorted(k[:-len("_latency")] for k in eng if k.endswith("_latency")
+                                     and k[:-len("_latency")] in ("exp", "sin", "cos", "atan2"))})
     return rows
 
 
@@ -340,17 +357,20 @@ def _simulate_on_chip(r: dict, cache: Path) -> None:
 def on_chip_table(rows: list[dict], three: list[dict]) -> str:
     """Part 5: the on-chip core beside the three-step core of the same P."""
     by_p = {r["pes"]: r for r in three}
-    head = ["P", "iteration on chip (cycles)", "/ max(FMAs / P, chain)", "chapter, Table 1 (us) / ours at 100 MHz",
+    head = ["application", "P", "iteration on chip (cycles)", "/ max(FMAs / P, chain, busiest unit)", "chapter, Table 1 (us) / ours at 100 MHz",
             "three steps + bursts (cycles)", "LUT", "three-step LUT", "FF",
             "DSP48E1", "BRAM (36 Kb)", "ECP5 Fmax (MHz)", "three-step Fmax", "iteration at Fmax (us)"]
     out = []
     for r in rows:
-        t = by_p.get(r["pes"], {})
+        nanosat = r.get("app", ON_CHIP_APP) == ON_CHIP_APP  # the chapter's application, and ours
+        t = by_p.get(r["pes"], {}) if nanosat else {}
         bursts = t.get("system", {}).get("burst", {}).get("cycles", {}).get("transfer")
         steps = sum(t["manifest_cycles"].values()) if t else None
-        it, ch = r["iteration"], CHAPTER_SYSTEM_US.get(r["pes"])
-        ratio = f"{it / max(r['fmas'] / r['pes'], r['chain']):.2f}" if "fmas" in r else "-"
-        out.append([str(r["pes"]), fmt(r.get("measured", r["iteration"])) + ("" if "measured" in r else " (manifest)"),
+        it, ch = r["iteration"], CHAPTER_SYSTEM_US.get(r["pes"]) if nanosat else None
+        ratio = f"{it / max(r['fmas'] / r['pes'], r['chain'], r.get('unit_bound', 0)):.2f}" if "fmas" in r else "-"
+        app = r.get("app", ON_CHIP_APP).split(":")[1].lower() + \
+            (f" ({', '.join(r['units'])})" if r.get("units") else "")
+        out.append([app, str(r["pes"]), fmt(r.get("measured", r["iteration"])) + ("" if "measured" in r else " (manifest)"),
                     ratio, f"{ch} / {it / 100:.1f} = {ch / (it / 100):.1f}x" if ch else "-",
                     (fmt(steps) + (f" + {fmt(round(bursts))}" if bursts else "")) if steps else "-",
                     fmt(r.get("lut")), fmt(t.get("lut")), fmt(r.get("ff")), fmt(r.get("dsp")),
@@ -410,7 +430,8 @@ def main(argv=None) -> int:
                 seconds["system co-simulation (part 4)"] = time.monotonic() - t0
         for r in rows:
             r.setdefault("iteration", sum(r["manifest_cycles"].values()))
-        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out)
+        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out) \
+            + on_chip_rows(args.tracker_pes, out, TRACKER_APP)
         if chip and not args.no_sim:
             t0 = time.monotonic()
             for r in chip:
@@ -442,9 +463,10 @@ def main(argv=None) -> int:
         return 1
     report = render(rows, bound, engine, args, seconds)
     if chip:
-        report += ("\nThe core with the nanosatellite's f and h on chip (kfgen ukf --app nanosat:Nanosat --on-chip), one "
-                   "start an iteration, beside the three-step core (whose iteration also needs the processor's f and "
-                   "h and the bus transfers of part 4):\n\n" + on_chip_table(chip, rows) + "\n"
+        report += ("\nThe core with the application's f and h on chip (kfgen ukf --app nanosat:Nanosat --on-chip, "
+                   "and the tracker, --app tracker:Tracker, whose h takes the atan2 unit), one start an iteration; "
+                   "the nanosatellite beside the three-step core (whose iteration also needs the processor's f and "
+                   "h and the bus transfers of part 4) and the chapter's Table 1:\n\n" + on_chip_table(chip, rows) + "\n"
                    + "".join(f"* On chip, P = {r['pes']}: the testbench failed: {r['sim_error']}\n"
                              for r in chip if r.get("sim_error")))
     gen_ok = True

@@ -98,11 +98,17 @@ def test_help_and_registration():
 
 
 def test_on_chip_table():
-    """Part 5: the on-chip core's row beside the three-step core of the same P."""
+    """Part 5: the on-chip core's row beside the three-step core of the same P; the tracker's
+    rows name its units and have no chapter or three-step figures."""
     chip = [{"pes": 1, "iteration": 4950, "measured": 4950, "lut": 6000, "ff": 5000, "dsp": 4, "bram36": 3.5,
-             "fmax_mhz": 99.0, "fmas": 4500, "chain": 2000}, {"pes": 2, "iteration": 2518}]
+             "fmax_mhz": 99.0, "fmas": 4500, "chain": 2000}, {"pes": 2, "iteration": 2518},
+            {"pes": 1, "app": bench_ukf.TRACKER_APP, "units": ["atan2"], "iteration": 873, "fmas": 270,
+             "chain": 400}]
     lines = bench_ukf.on_chip_table(chip, rows()).splitlines()
     # 4,950 / max(4,500 / 1, 2,000) = 1.10; Table 1's 363 us against 49.5 us at 100 MHz
-    assert lines[2] == ("| 1 | 4,950 | 1.10 | 363 / 49.5 = 7.3x | 3,600 + 754 | 6,000 | 20,000 | 5,000 | 4 | 3.5 | "
-                        "99.0 | 90.0 | 50.0 |")
-    assert lines[3] == "| 2 | 2,518 (manifest) | - | 272 / 25.2 = 10.8x | - | - | - | - | - | - | - | - | - |"
+    assert lines[2] == ("| nanosat | 1 | 4,950 | 1.10 | 363 / 49.5 = 7.3x | 3,600 + 754 | 6,000 | 20,000 | 5,000 | 4 "
+                        "| 3.5 | 99.0 | 90.0 | 50.0 |")
+    assert lines[3] == ("| nanosat | 2 | 2,518 (manifest) | - | 272 / 25.2 = 10.8x | - | - | - | - | - | - | - | "
+                        "- | - |")
+    # 873 / max(270, 400) = 2.18
+    assert lines[4] == "| tracker (atan2) | 1 | 873 (manifest) | 2.18 | - | - | - | - | - | - | - | - | - | - |"
