@@ -78,3 +78,23 @@ def run_staged(m, inputs, out, vectors):
     sim.add_testbench(tb)
     sim.run()
     return got
+
+
+def simulate_fpu_cores(build_root, name, units, model):
+    """Generate each ``prefix: (op, format, subnormals, operands)`` core (``operands``: word
+    lists ``a`` [, ``b``]), run them side by side in one Verilator build under cocotb
+    (:func:`kfgen.sim.fpu.run.run_fpu_group`) and check every word and flag against
+    ``model(op, format, operands, subnormals) -> (words, flags)``."""
+    from kfgen.sim.fpu.run import run_fpu_group
+    root = build_root / "fpu" / name
+    spec = {}
+    for prefix, (op, fmt, subnormals, operands) in units.items():
+        top = f"u_{name}_{prefix}"
+        kfgen("fpu", "--op", op, "--format", fmt, "--subnormals", subnormals, "--name", top, "-o", root / top)
+        y, flags = model(op, fmt, operands, subnormals)
+        spec[prefix] = (root / top, top, operands, ([int(v) for v in y], [int(v) for v in flags]))
+    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=7, name=name, cache_dir=VERILATOR_CACHE,
+                            waves=bool(os.environ.get("KFGEN_WAVES")))
+    for prefix, (_, _, _, (y, flags)) in spec.items():
+        assert [int(v) for v in results[prefix]["y"]] == y, prefix
+        assert [int(v) for v in results[prefix]["flags"]] == flags, prefix

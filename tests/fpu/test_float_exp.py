@@ -10,7 +10,6 @@ after rounding (so with every subnormal or zero result).
 """
 
 import decimal
-import os
 from fractions import Fraction
 
 import numpy as np
@@ -24,9 +23,8 @@ from kfgen.sim.float_ref import _consts, _round, decode, round_to_format
 from kfgen.sim.fpu.exp_exact import (_format, _round_ratio, directed_words, exp_exact, faithful,
                                      random_words, ulp_error)
 from kfgen.sim.fpu.exp_model import exp_model, round_vector
-from kfgen.sim.fpu.run import run_fpu_group
 
-from helpers import VERILATOR_CACHE, kfgen
+from helpers import simulate_fpu_cores
 
 D = decimal.Decimal
 CTX = decimal.Context(prec=120)
@@ -321,27 +319,21 @@ def _rtl_units(full: bool):
             "b16ftz": ("binary16", "ftz", list(range(1 << 16)))}
 
 
-def _simulate(build_root, name, units):
-    root = build_root / "fpu" / name
-    spec = {}
-    for prefix, (fmt, subnormals, words) in units.items():
-        top = f"x_{name}_{prefix}"
-        kfgen("fpu", "--op", "exp", "--format", fmt, "--subnormals", subnormals, "--name", top, "-o", root / top)
-        y, flags = exp_model(fmt, words_array(fmt, words), subnormals)
-        spec[prefix] = (root / top, top, {"a": words}, ([int(v) for v in y], [int(v) for v in flags]))
-    results = run_fpu_group(root / "sim_build", spec, gap=0.2, seed=7, name=name, cache_dir=VERILATOR_CACHE,
-                            waves=bool(os.environ.get("KFGEN_WAVES")))
-    for prefix, (_, _, _, (y, flags)) in spec.items():
-        assert [int(v) for v in results[prefix]["y"]] == y, prefix
-        assert [int(v) for v in results[prefix]["flags"]] == flags, prefix
+def _model(op, fmt, operands, subnormals):
+    return exp_model(fmt, words_array(fmt, operands["a"]), subnormals)
+
+
+def _cores(full: bool):
+    return {prefix: ("exp", fmt, subnormals, {"a": words})
+            for prefix, (fmt, subnormals, words) in _rtl_units(full).items()}
 
 
 @pytest.mark.verilator
 def test_rtl_bit_exact(build_root):
-    _simulate(build_root, "exp", _rtl_units(full=False))
+    simulate_fpu_cores(build_root, "exp", _cores(full=False), _model)
 
 
 @pytest.mark.verilator
 @pytest.mark.full
 def test_rtl_bit_exact_full(build_root):
-    _simulate(build_root, "exp_full", _rtl_units(full=True))
+    simulate_fpu_cores(build_root, "exp_full", _cores(full=True), _model)

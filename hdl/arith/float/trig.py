@@ -8,12 +8,11 @@ the error budget); :mod:`kfgen.sim.fpu.trig_model` is the golden model, bit for 
 from __future__ import annotations
 
 from amaranth.hdl import Array, C, Cat, Module, Mux, Signal, signed
-from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from .format import FLAG_NV, FLAG_NX, FLAG_UF, FloatFormat
-from .round import Cuts, UnitPlan, as_format, leading_zeros, round_pack, unpack
+from .round import Cuts, FloatUnit, leading_zeros, round_pack, unpack
 from .trig_plan import pi_floor, trig_plan
 
 __all__ = ["FloatSin", "FloatCos", "FloatAtan2", "constant_word"]
@@ -29,7 +28,7 @@ def constant_word(fmt: FloatFormat, multiple: tuple[int, int], sign: int = 0) ->
     return round_magnitude(k, sign, pi_floor(n) * multiple[0], -n - multiple[1], True, False)[0]
 
 
-class _TrigUnit(wiring.Component):
+class _TrigUnit(FloatUnit):
     """The frame of the three units: parameters, the cycle counter and the output register.
 
     ``i_ready`` is high when the unit is idle; an operation accepted at cycle 0 (``i_valid &
@@ -43,58 +42,30 @@ class _TrigUnit(wiring.Component):
     def cycles(cls, fmt: FloatFormat) -> int:
         raise NotImplementedError
 
-    @classmethod
-    def plan(cls, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
-             stages: int | None = None) -> UnitPlan:
-        """The unit's :class:`~.round.UnitPlan` (one stage count: its latency); ``ValueError``
-        on a bad argument, as the constructor."""
-        fmt = as_format(fmt)
-        if subnormals not in ("ieee", "ftz"):
-            raise ValueError(f"subnormals must be 'ieee' or 'ftz', not {subnormals!r}")
-        latency = cls.cycles(fmt)
-        if stages is not None and (isinstance(stages, bool) or stages != latency):
-            raise ValueError(f"stages must be {latency} (the unit is iterative), not {stages!r}")
-        return UnitPlan(latency, latency, latency, {latency: ("out",)})
-
     def __init__(self, fmt: FloatFormat | str = FloatFormat(), *, subnormals: str = "ieee",
                  stages: int | None = None):
-        self.plan(fmt, subnormals=subnormals, stages=stages)
-        self._fmt, self._subnormals = as_format(fmt), subnormals
-        self._latency = self.cycles(self._fmt)
-        w = self._fmt.width
-        ports = {"i_valid": In(1), "i_ready": Out(1), "i_a": In(w)}
-        if self.ARITY == 2:
-            ports["i_b"] = In(w)
-        super().__init__(ports | {"o_valid": Out(1), "o_y": Out(w), "o_flags": Out(5)})
+        operands = {"i_a": None, "i_b": None} if self.ARITY == 2 else {"i_a": None}
+        super().__init__(fmt, subnormals, stages, lambda f: {
+            "i_valid": In(1), "i_ready": Out(1), **{k: In(f.width) for k in operands},
+            "o_valid": Out(1), "o_y": Out(f.width), "o_flags": Out(5)})
 
-    @property
-    def fmt(self) -> FloatFormat:
-        return self._fmt
-
-    @property
-    def subnormals(self) -> str:
-        return self._subnormals
-
-    @property
-    def stages(self) -> int:
-        return self._latency
-
-    @property
-    def latency(self) -> int:
-        return self._latency
+    def stage_plans(self, fmt, subnormals):
+        """One stage count, the latency (and a ``ValueError`` for a format the plan refuses)."""
+        latency = self.cycles(fmt)
+        return {latency: ("out",)}, latency
 
     @property
     def initiation_interval(self) -> int:
-        return self._latency
+        return self.latency
 
     def _frame(self, m: Module):
         """The counter (0: idle; 1 .. latency - 1: working) and the accept strobe."""
-        cnt = Signal(range(self._latency + 1))
+        cnt = Signal(range(self.latency + 1))
         accept = self.i_valid & self.i_ready
         m.d.comb += self.i_ready.eq(cnt == 0)
         with m.If(accept):
             m.d.sync += cnt.eq(1)
-        with m.Elif(cnt == self._latency - 1):
+        with m.Elif(cnt == self.latency - 1):
             m.d.sync += cnt.eq(0)
         with m.Elif(cnt != 0):
             m.d.sync += cnt.eq(cnt + 1)
@@ -106,7 +77,7 @@ class _TrigUnit(wiring.Component):
         cuts = Cuts(m, (), C(1, 1))
         word, flags = round_pack(cuts, self._fmt, sign=sign, exp=exp + len(sig) - 1, sig=sig, sticky=C(1, 1),
                                  subnormals=self._subnormals)
-        last = cnt == self._latency - 1
+        last = cnt == self.latency - 1
         m.d.sync += self.o_valid.eq(last)
         with m.If(last):
             m.d.sync += [self.o_y.eq(Mux(direct, direct_word, word)),
