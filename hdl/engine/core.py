@@ -97,6 +97,24 @@ class StreamSpec:
                 for port, names in (("s_axis", self.in_names), ("m_axis", self.out_names))}
 
 
+@dataclass(frozen=True)
+class Prologue:
+    """A step that runs by itself before another when its inputs have changed.
+
+    A start of step ``main`` (an engine step index, from the bus or the stream ports) starts
+    step ``pre`` instead when a buffer write has been accepted into any of ``elements``
+    (``(first element, count)`` ranges) since ``pre`` last ran to its end, and after reset
+    (a soft reset too); ``pre``'s end starts ``main`` in the same cycle, so the two take
+    ``cycles(pre) + cycles(main)`` from the start's W beat. STATUS.busy stays high between
+    them; ``done`` (and the stream ports) see only ``main``'s end; ``pre``'s faults set
+    ``err_pivot``/``err_nan`` when it ends. ``pre`` started by itself runs as any step does
+    (and is then not run again before ``main``)."""
+
+    main: int
+    pre: int
+    elements: tuple
+
+
 def stream_members(spec: StreamSpec) -> dict:
     """The AXI4-Stream ports of ``spec``, named as cocotbext-axi's ``AxiStreamBus.from_prefix``
     and Vivado's interface inference expect them."""
@@ -129,9 +147,11 @@ class Backend(wiring.Component):
         ``(STATUS & IRQ_ENABLE) != 0`` for the event bits, a register (0 without ``irq``).
     """
 
-    def __init__(self, params, engine: Engine, rmap, stream: StreamSpec | None = None):
+    def __init__(self, params, engine: Engine, rmap, stream: StreamSpec | None = None,
+                 prologue: Prologue | None = None):
         self._params, self._engine = params, engine
         self._map = rmap
+        self._prologue = prologue
         self._stream = stream
         ctrl = self._map["CTRL"]
         self._f_step = next((f for f in ctrl.fields if f.name == "step"), None)
@@ -175,10 +195,20 @@ class Backend(wiring.Component):
         step = Signal(f_step.width if f_step else 1)
         sticky = {e: Signal(name=f"status_{e}") for e in _EVENTS}
         enable = {e: Signal(name=f"irq_enable_{e}") for e in _EVENTS}
-        busy = eng.busy
+        # the engine as the rest sees it: with a prologue, busy from the start of pre to the
+        # end of main, and done only at main's end
+        pro = self._prologue
+        if pro is None:
+            eng_busy, eng_done, want_start, want_step = eng.busy, eng.done, eng.start, eng.step
+        else:
+            chained = Signal(name="prologue_chained")  # pre is running as main's prologue
+            eng_busy, eng_done = eng.busy | chained, eng.done & ~chained
+            # a start from the bus or the streams, before the prologue's say
+            want_start, want_step = Signal(name="want_start"), Signal.like(eng.step, name="want_step")
+        busy = eng_busy
         if self._stream is not None:  # a measurement in from s_axis to its result on m_axis
             streaming = Signal(name="stream_active")
-            busy = eng.busy | streaming
+            busy = eng_busy | streaming
 
         # ------------------------------------------------------------- writes
         w_buf, w_elem, w_half = buffer_at(bus.w_addr)
@@ -213,12 +243,12 @@ class Backend(wiring.Component):
         known, index = new_step < first + len(eng.step_names), new_step
         if first:
             known, index = known & (new_step >= first), new_step - first
-        m.d.comb += [eng.start.eq(do_start & ~busy & known), eng.step.eq(index), eng.halt.eq(do_reset)]
+        m.d.comb += [want_start.eq(do_start & ~busy & known), want_step.eq(index), eng.halt.eq(do_reset)]
         with m.If(byte0 & is_reg["CTRL"] & ~refused_start):
             m.d.sync += step.eq(new_step)
 
         # status: events set by the engine and by a refused start, cleared by w1c or reset
-        now = {"done": eng.done, "err_pivot": eng.done & eng.err_pivot, "err_nan": eng.done & eng.err_nan,
+        now = {"done": eng_done, "err_pivot": eng.done & eng.err_pivot, "err_nan": eng.done & eng.err_nan,
                "err_busy": refused_start}
         clear = {e: byte0 & is_reg["STATUS"] & wd[lsb[e]] for e in _EVENTS}
         seen = {e: Signal(name=f"status_{e}_now") for e in _EVENTS}  # STATUS as read this cycle
@@ -281,15 +311,41 @@ class Backend(wiring.Component):
         # (a refused read's data is the front end's to zero)
         m.d.comb += [bus.r_data.eq(Mux(from_buf_r, buf_word, reg_r)), bus.r_err.eq(err_r)]
         if self._stream is not None:  # last: its memory accesses override the bus's
-            self._stream_fsm(m, streaming, do_start, do_reset, kb)
+            self._stream_fsm(m, streaming, do_start, do_reset, kb, (want_start, want_step, eng_busy, eng_done))
+        if pro is None:
+            return m
+        # the prologue: pre's inputs written since it last ended (or reset) make main's start
+        # pre's, and pre's end main's start
+        stale = Signal(init=1, name="prologue_stale")
+        running_pre = Signal(name="prologue_running")  # pre is the engine's step
+        hit = Const(0, 1)
+        for first_e, count in pro.elements:
+            hit = hit | ((w_elem >= first_e) & (w_elem < first_e + count))
+        go_pre = want_start & (want_step == pro.main) & stale
+        then_main = chained & eng.done
+        m.d.comb += [eng.start.eq(want_start | then_main),
+                     eng.step.eq(Mux(then_main, pro.main, Mux(go_pre, pro.pre, want_step)))]
+        with m.If(eng.start & ~eng.busy):
+            m.d.sync += running_pre.eq(eng.step == pro.pre)
+        with m.If(go_pre):
+            m.d.sync += chained.eq(1)
+        with m.If(then_main):
+            m.d.sync += chained.eq(0)
+        with m.If(eng.done & running_pre):
+            m.d.sync += [stale.eq(0), running_pre.eq(0)]
+        with m.If(buf_we & hit):
+            m.d.sync += stale.eq(1)
+        with m.If(do_reset):  # a halted pre has not ended: main does not follow, pre runs again
+            m.d.sync += [stale.eq(1), chained.eq(0), running_pre.eq(0)]
         return m
 
-    def _stream_fsm(self, m, streaming, do_start, do_reset, kb):
+    def _stream_fsm(self, m, streaming, do_start, do_reset, kb, engine):
         """The stream ports (:class:`StreamSpec`): take a transfer, write its elements, start
         the step, read the result into ``m_axis``. Its memory accesses override the bus's
         (assigned after them): the bus's buffer writes answer SLVERR while it is active
         (``busy`` includes it) and its buffer reads wait while it reads."""
         spec, eng, bus = self._stream, self._engine, self.bus
+        want_start, want_step, eng_busy, eng_done = engine  # the engine as the core sees it
         width, fb = self._params.fmt.width, spec.field_bits
         k_in, k_out = len(spec.in_names), len(spec.out_addrs)
         din = Signal(spec.in_width, name="stream_din")
@@ -309,8 +365,8 @@ class Backend(wiring.Component):
         for j, a in enumerate(spec.out_addrs):
             fetch_addr = Mux(count == j, a, fetch_addr)
         with m.If(state == IDLE):
-            m.d.comb += self.s_axis_tready.eq(~eng.busy & ~do_start)
-            with m.If(self.s_axis_tvalid & ~eng.busy & ~do_start):
+            m.d.comb += self.s_axis_tready.eq(~eng_busy & ~do_start)
+            with m.If(self.s_axis_tvalid & ~eng_busy & ~do_start):
                 m.d.sync += [din.eq(self.s_axis_tdata), count.eq(0), streaming.eq(1), state.eq(LOAD)]
         with m.Elif(state == LOAD):  # one element a cycle, from in_base on
             m.d.comb += [eng.mem_we.eq(1), eng.mem_waddr.eq(spec.in_base + count), eng.mem_wdata.eq(din[:width])]
@@ -318,10 +374,10 @@ class Backend(wiring.Component):
             with m.If(count == k_in - 1):
                 m.d.sync += state.eq(START)
         with m.Elif(state == START):
-            m.d.comb += [eng.start.eq(~do_reset), eng.step.eq(spec.step)]
+            m.d.comb += [want_start.eq(~do_reset), want_step.eq(spec.step)]
             m.d.sync += state.eq(RUN)
         with m.Elif(state == RUN):
-            with m.If(eng.done):
+            with m.If(eng_done):
                 m.d.sync += [user.eq(Cat(eng.err_pivot, eng.err_nan)), count.eq(0), got.eq(0), state.eq(FETCH)]
         with m.Elif(state == FETCH):  # one read a cycle; the words arrive two cycles later
             with m.If(count < k_out):
@@ -364,8 +420,10 @@ class EngineCore(wiring.Component):
     latency = None
     initiation_interval = None
 
-    def __init__(self, params, rmap, schedules, stream: StreamSpec | None = None):
+    def __init__(self, params, rmap, schedules, stream: StreamSpec | None = None,
+                 prologue: Prologue | None = None):
         self._params = params
+        self._prologue = prologue
         self._map = rmap
         self._schedules = schedules
         self._stream = stream
@@ -373,6 +431,11 @@ class EngineCore(wiring.Component):
         self._members = axi4_slave_members(self._map.address_width, BUS_ID_WIDTH)
         self._stream_members = stream_members(stream) if stream is not None else {}
         super().__init__({**self._members, **({"irq": Out(1)} if params.irq else {}), **self._stream_members})
+
+    @property
+    def prologue(self) -> Prologue | None:
+        """The step run before another when its inputs have changed, or ``None``."""
+        return self._prologue
 
     @property
     def stream(self) -> StreamSpec | None:
@@ -407,7 +470,7 @@ class EngineCore(wiring.Component):
         m = Module()
         m.submodules.front = front = Axi4Slave(self._map.address_width, BUS_ID_WIDTH, BUS_READ_LATENCY)
         m.submodules.engine = self._engine
-        m.submodules.back = back = Backend(self._params, self._engine, self._map, self._stream)
+        m.submodules.back = back = Backend(self._params, self._engine, self._map, self._stream, self._prologue)
         wiring.connect(m, front.bus, back.bus)
         forward(m, self, front, self._members)
         forward(m, self, back, self._stream_members)

@@ -62,9 +62,20 @@ def engine_manifest(core) -> dict:
             optional[u.latency] = getattr(mc, u.latency)
             if u.interval is not None:
                 optional[u.interval] = getattr(mc, u.interval)
+    names = list(scheds)
+    pro = core.prologue
+    prologue = {} if pro is None else {"prologue": {
+        "step": names[pro.pre], "before": names[pro.main],
+        "after_writes_to": [mem.name for mem in core.regmap.memories if any(
+            first <= (mem.offset - core.regmap.buffer_base) // mem.element_size < first + count
+            for first, count in pro.elements)],
+        "definition": f"a start of {names[pro.main]} runs {names[pro.pre]} first, by itself, when one of these "
+                      f"regions has been written since {names[pro.pre]} last ended (and after reset): "
+                      f"cycles.{names[pro.pre]} + cycles.{names[pro.main]} from the start's W beat"}}
     return {
         "cycles": {name: core.cycles(name) for name in scheds},
         "cycles_definition": CYCLES_DEFINITION,
+        **prologue,
         "engine": {"pes": mc.pes, "read_latency": mc.read_latency, "unit_register": mc.unit_register,
                    "fma_latency": mc.fma_latency, "div_latency": mc.div_latency,
                    "sqrt_latency": mc.sqrt_latency, **optional,

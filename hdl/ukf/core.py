@@ -4,7 +4,7 @@ with the UKF's register and memory map (:func:`kfgen.hdl.ukf.regmap.ukf_map`).""
 
 from __future__ import annotations
 
-from ..engine.core import EngineCore, StreamSpec
+from ..engine.core import EngineCore, Prologue, StreamSpec
 from .regmap import ukf_map
 from .steps import programs, schedules
 
@@ -19,7 +19,18 @@ class Ukf(EngineCore):
     def __init__(self, params):
         self._programs = programs(params)
         super().__init__(params, ukf_map(params), schedules(params, self._programs),
-                         stream_spec(params, self._programs) if params.streams else None)
+                         stream_spec(params, self._programs) if params.streams else None,
+                         prologue(self._programs))
+
+
+def prologue(progs) -> Prologue | None:
+    """The ``noise`` step before an ``iteration`` after a write to Q or R (an on-chip core's)."""
+    if progs.prologue is None:
+        return None
+    pre, main, regions = progs.prologue
+    names = list(progs.steps)
+    return Prologue(names.index(main), names.index(pre),
+                    tuple((progs.layout[r].base, progs.layout[r].size) for r in regions))
 
 
 def stream_spec(params, progs) -> StreamSpec:

@@ -76,14 +76,22 @@ class UkfPrograms:
     update: Program
 
     iteration: Program | None = None
+    noise: Program | None = None
 
     @property
     def steps(self):
-        """Step name -> program, in CTRL.step's order: the one ``iteration`` of a core with f
-        and h on chip, else sig_gen, predict and update."""
+        """Step name -> program, in CTRL.step's order: ``iteration`` and ``noise`` (its
+        prologue) of a core with f and h on chip, else sig_gen, predict and update."""
         if self.iteration is not None:
-            return {"iteration": self.iteration}
+            return {"iteration": self.iteration, "noise": self.noise}
         return {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
+
+    @property
+    def prologue(self):
+        """``(pre, main, regions)`` of a core with f and h on chip: a start of ``main``
+        runs ``pre`` first when software has written one of ``regions`` since ``pre`` last
+        ran to its end (and after reset); ``None`` for the three-step core."""
+        return ("noise", "iteration", ("Q", "R")) if self.noise is not None else None
 
 
 def build_ukf(params: UkfParams) -> UkfPrograms:
@@ -147,6 +155,10 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
 
     # ---- sig_gen -------------------------------------------------------------------------
     sg = Program("sig_gen", lay, fmt)
+    # With f and h on chip, the factors of Q and R and the sigma points' noise rows (x^a is 0
+    # there) change only when software writes Q or R: a step of their own, ``noise``, which
+    # the core runs before an iteration that follows such a write (a prologue).
+    nz = Program("noise", lay, fmt) if params.on_chip else sg
 
     def ldl(prog, nb, a, f, l, dd, rd):
         """LDL^T of an nb x nb block by (23)-(24), column by column; F_ij = L_ij D_j.
@@ -174,20 +186,22 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
         return fa, la
 
     lsg = {}
-    for b0, b1 in _blocks(params):
-        _, la = ldl(sg, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
+    for block, (b0, b1) in enumerate(_blocks(params)):
+        _, la = ldl(sg if block == 0 else nz, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
             lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
         lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
     for j in range(M):  # sqrt(D) (22), folded into sigma's rows
-        sg.emit(Sqrt(s(j), D(j)))
-        sg.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
-        sg.emit(Dot(e(j), None, [(s(j), sig_d(0, j), False)]))
+        prog = sg if j < n else nz
+        prog.emit(Sqrt(s(j), D(j)))
+        prog.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
+        prog.emit(Dot(e(j), None, [(s(j), sig_d(0, j), False)]))
 
     def l2(rr, j):  # L2's entry (unit diagonal)
         return one if rr == j else lsg[rr, j]
 
-    for b0, b1 in _blocks(params):
+    for block, (b0, b1) in enumerate(_blocks(params)):
+        prog = sg if block == 0 else nz
         for rr in range(b0, b1):
             xa = x(rr) if rr < n else None  # x^a = [x; 0; 0] (3)
             base = {rr + 1: xa}  # base[k] = T_rk, the suffix sum from column k
@@ -198,7 +212,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                 dst = Tr(rr) if k == rr else T(ti[rr, k])
                 if k == b0:
                     dst = chi(1, rr)  # chi_1 = T_r,b0: sigma's column 1 is all c
-                sg.emit(Dot(dst, base[k + 1], [(l2(rr, k), g(k), False)]))
+                prog.emit(Dot(dst, base[k + 1], [(l2(rr, k), g(k), False)]))
                 base[k] = dst
             for i in range(N):  # chi_i = x^a + L1 sigma_i (8)
                 if i == 0:
@@ -207,9 +221,9 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                     src = base[max(b0, i - 1)] if max(b0, i - 1) <= rr else xa
                     term = (l2(rr, i - 2), e(i - 2), False) if b0 <= i - 2 <= rr else None
                 if term is not None:
-                    sg.emit(Dot(chi(i, rr), src, [term]))
+                    prog.emit(Dot(chi(i, rr), src, [term]))
                 elif src is not None and src != chi(i, rr):
-                    sg.emit(Copy(chi(i, rr), src))
+                    prog.emit(Copy(chi(i, rr), src))
                 # src None: a noise row beyond sigma's nonzeros, zero since reset (the bus
                 # cannot write sigma_points, and nothing else writes these words)
 
@@ -269,7 +283,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                         "finite"))
     if models is None:
         return UkfPrograms(params, fmt, lay, sg, pr, up)
-    return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u))
+    return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u), nz)
 
 
 def _iteration(params, models, lay, sg, pr, up, u) -> Program:

@@ -38,11 +38,14 @@ STEPS = (
 )
 
 
-#: The one step of a core with f and h on chip (``on_chip``); CTRL.step 0..2 are reserved
-#: there (start does nothing).
+#: The steps of a core with f and h on chip (``on_chip``); CTRL.step 0..2 are reserved there
+#: (start does nothing).
 ON_CHIP_STEPS = (
     Value("iteration", 3, "one whole iteration: sig_gen, f on every point, predict, h on every moved point "
-                          "and update, reading z and u; x, P <- the estimate"),
+                          "and update, reading z and u; x, P <- the estimate (after a write to Q or R, "
+                          "noise runs first, by itself)"),
+    Value("noise", 4, "the factors of Q and R and the sigma points' noise rows; the core runs it before the "
+                      "first iteration after a write to Q or R (or reset), or software starts it ahead"),
 )
 
 
@@ -80,8 +83,9 @@ def _registers(params) -> tuple[Register, ...]:
                                         "while busy (STATUS.err_busy)"),
             Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running step stops, the core is idle, "
                                         "STATUS is cleared; the buffer is kept"),
-            Field("step", 4, 2, "rw", "the step that start runs; 0..2 are reserved (start does nothing)"
-                  if params.on_chip else "the step that start runs; 3 is reserved (start does nothing)",
+            Field("step", 4, 3, "rw", "the step that start runs; 0..2 and 5..7 are reserved (start does nothing)",
+                  values=steps(params)) if params.on_chip else
+            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)",
                   values=steps(params)),
         )),
         *status_registers(events, "step", params.irq),

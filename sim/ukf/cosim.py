@@ -52,16 +52,18 @@ from kfgen.sim.linalg.exec import Status, from_words, run
 from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
 
 from .app import checked_scenario, load_app
-from .software import StepError, initial_words, iteration
+from .software import Prologue, StepError, initial_words, iteration
 
 CLOCK_NS = 10
 
 
 def steps_of(manifest) -> list[str]:
-    """The core's steps in CTRL.step's order."""
+    """The steps software starts, in CTRL.step's order (not a prologue, which the core runs
+    by itself: its cycles count in the step it precedes)."""
     ctrl = next(r for r in manifest["registers"] if r["name"] == "CTRL")
     values = next(f for f in ctrl["fields"] if f["name"] == "step")["values"]
-    return sorted(values, key=values.get)
+    pre = manifest.get("prologue", {}).get("step")
+    return [s for s in sorted(values, key=values.get) if s != pre]
 
 
 class GoldenBus:
@@ -86,6 +88,7 @@ class GoldenBus:
         self.steps = {v: k for k, v in self.step_field["values"].items()}
         self.low = None
         self.last = None  # the Status of the last step started
+        self.prologue = Prologue(self.ukf)
 
     def _element(self, addr):
         for lo, hi, reg in self.regions:
@@ -99,7 +102,7 @@ class GoldenBus:
             if word >> self.start_bit & 1:
                 f = self.step_field
                 step = self.steps[word >> f["lsb"] & ((1 << f["width"]) - 1)]
-                self.last = run(self.ukf.steps[step], self.mem)
+                self.last = self.prologue.run(step, self.mem)
             return
         a, half = self._element(addr)
         if a is None:
@@ -110,6 +113,7 @@ class GoldenBus:
             self.low = word
         else:
             self.mem[a] = self.low | word << 32
+        self.prologue.wrote_word(a)
 
     def expect(self, addr):
         a, half = self._element(addr)
@@ -205,7 +209,7 @@ class CheckedBus:
             self.last_step = self.running[0]
         elif addr == self.status_addr and self.running and word >> self.status_bits["done"] & 1:
             step, start = self.running
-            self.cycles[step] += self.now() - start
+            self.cycles[step] = self.cycles.get(step, 0) + self.now() - start
             self.running = None
 
     async def wait_event(self):

@@ -29,7 +29,7 @@ from kfgen.sim.linalg.exec import Status, from_words, run, to_words
 
 from .app import UkfApplication
 
-__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "GoldenCore", "complete"]
+__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "Prologue", "GoldenCore", "complete"]
 
 
 class CoreIO(Protocol):
@@ -111,6 +111,49 @@ async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z, on_chip: bool = 
     await _step(io, "update")
 
 
+class Prologue:
+    """The core's prologue (:attr:`~kfgen.hdl.ukf.programs.UkfPrograms.prologue`) on the
+    golden side: a start of ``iteration`` on an on-chip core runs ``noise`` first when Q or R
+    have been written since ``noise`` last ran (and after reset), as the hardware does
+    (:class:`kfgen.hdl.engine.core.Prologue`)."""
+
+    def __init__(self, ukf):
+        self.ukf = ukf
+        self.spec = getattr(ukf, "prologue", None)  # (the IMM's programs have none)
+        self.stale = True
+
+    def wrote(self, name: str) -> None:
+        """Region ``name`` was written."""
+        if self.spec is not None and name in self.spec[2]:
+            self.stale = True
+
+    def wrote_word(self, address: int) -> None:
+        """The word at ``address`` (the layout's) was written."""
+        if self.spec is not None and any(self.ukf.layout[r].base <= address < self.ukf.layout[r].base
+                                         + self.ukf.layout[r].size for r in self.spec[2]):
+            self.stale = True
+
+    def steps(self, name: str) -> list[str]:
+        """The programs a start of ``name`` runs now, in order (and the state that follows)."""
+        if self.spec is None:
+            return [name]
+        pre, main, _ = self.spec
+        out = [pre, main] if name == main and self.stale else [name]
+        if pre in out:
+            self.stale = False
+        return out
+
+    def run(self, name: str, mem: list[int], steps: list[str] | None = None) -> Status:
+        """Start ``name`` on ``mem`` (the programs ``steps`` if given, else :meth:`steps`'):
+        their statuses together."""
+        pivot = nan = False
+        flags = 0
+        for step in steps or self.steps(name):
+            st = run(self.ukf.steps[step], mem)
+            pivot, nan, flags = pivot or st.pivot, nan or st.nan, flags | st.flags
+        return Status(pivot, nan, flags)
+
+
 class GoldenCore:
     """:class:`CoreIO` on the bit-exact golden model: the core's memory as words, each step
     its program run by :func:`kfgen.sim.linalg.exec.run`.
@@ -125,9 +168,10 @@ class GoldenCore:
         self.ukf = programs(params)
         self.fmt = self.ukf.fmt
         self.mem = self.ukf.layout.initial_memory()
+        self.prologue = Prologue(self.ukf)
 
     async def step(self, name: str) -> Status:
-        return run(self.ukf.steps[name], self.mem)
+        return self.prologue.run(name, self.mem)
 
     async def read(self, name: str) -> list[int]:
         reg = self.ukf.layout[name]
@@ -138,6 +182,7 @@ class GoldenCore:
         if len(words) != reg.size:
             raise ValueError(f"{name} holds {reg.size} words, not {len(words)}")
         self.mem[reg.base:reg.base + reg.size] = words
+        self.prologue.wrote(name)
 
 
 def complete(coro):

@@ -30,6 +30,7 @@ from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import from_words, run, to_words
+from kfgen.sim.ukf.software import Prologue
 from kfgen.sim.streams import StreamChecker
 from kfgen.sim.watchdog import Expired, Watchdog, bound, poll, wait_irq
 
@@ -73,6 +74,7 @@ class TB:
         self.ukf = self.PROGRAMS(self.params)
         self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
         self.gold = self.layout.initial_memory()
+        self.prologue = Prologue(self.ukf)  # noise before an on-chip iteration after Q, R writes
         self.regs = {r["name"]: r for r in self.manifest["registers"]}
         self.has_step = any(fd["name"] == "step" for fd in self.regs["CTRL"]["fields"])  # the IMM's has none
         self.mems = {mm["name"]: mm for mm in self.manifest["memories"]}
@@ -169,6 +171,7 @@ class TB:
         assert resp == expect, (name, resp)
         if resp == AxiResp.OKAY:
             self.gold[reg.base:reg.base + reg.size] = words
+            self.prologue.wrote(name)
         return words
 
     async def get_words(self, name, expect=AxiResp.OKAY):
@@ -194,11 +197,13 @@ class TB:
     async def step(self, name):
         """Run ``name`` in hardware (start, wait for irq) and in the golden model; check the
         status, the cycles against the manifest, and clear the status."""
-        st = run(self.ukf.steps[name], self.gold)
+        steps = self.prologue.steps(name)  # (an on-chip iteration may run noise first)
+        st = self.prologue.run(name, self.gold, steps)
+        cycles = sum(self.manifest["cycles"][s] for s in steps)
         beats = len(self.w_beats)
         rises = len(self.irq_rises)
         assert await self.start(name) == AxiResp.OKAY
-        dog = Watchdog(name, self.manifest["cycles"][name], self.now())
+        dog = Watchdog(name, cycles, self.now())
         if self.calm:  # no cycle count (None): wait for irq, then check the status as below
             await wait_irq(self.dut, dog, self.now)
             measured = None
@@ -209,7 +214,7 @@ class TB:
             # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1
             # after edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next
             measured = self.irq_rises[rises] - self.w_beats[beats] - 1
-            assert measured == self.manifest["cycles"][name], (name, measured, self.manifest["cycles"][name])
+            assert measured == cycles, (steps, measured, cycles)
         status = await self.read_reg("STATUS")
         want = self.bits("STATUS", done=1, err_pivot=st.pivot, err_nan=st.nan)
         assert status == want, (name, hex(status), hex(want))
@@ -303,8 +308,8 @@ async def on_chip_iterations(dut):
     app = load_app(p.app)
     for name, words in initial_words(app, tb.fmt).items():
         await tb.put(name, from_words(tb.fmt, words))
-    # CTRL.step 0..2 are reserved on this core: start does nothing (no done, no error)
-    for reserved in range(3):
+    # CTRL.step 0..2 and 5..7 are reserved on this core: start does nothing (no done, no error)
+    for reserved in (0, 1, 2, 5, 6, 7):
         f_step = next(fd for fd in tb.regs["CTRL"]["fields"] if fd["name"] == "step")
         word = tb.bits("CTRL", start=1) | reserved << f_step["lsb"]
         assert await tb.write_reg("CTRL", word) == AxiResp.OKAY
@@ -312,10 +317,16 @@ async def on_chip_iterations(dut):
         assert await tb.read_reg("STATUS") == 0 and dut.irq.value == 0
     steps = int(os.environ.get("KFGEN_TB_ITERATIONS", "5"))
     sc = checked_scenario(app, steps, int(os.environ.get("KFGEN_TB_SEED", "1")))
+    Q = from_words(tb.fmt, initial_words(app, tb.fmt)["Q"])
     for it, (u, z) in enumerate(sc.inputs()):
         if p.nu:
             await tb.put("u", u)
         await tb.put("z", z)
+        if it == 1:  # Q written again: this iteration runs noise first (the first did, after the load)
+            await tb.put("Q", Q)
+        elif it == 2:  # noise started ahead: the iteration runs alone
+            await tb.put("R", from_words(tb.fmt, initial_words(app, tb.fmt)["R"]))
+            await tb.step("noise")
         st, measured = await tb.step("iteration")
         assert not (st.pivot or st.nan), (it, st)
         for name in ("x", "P", "sigma_points", "sigma_points_f", "sigma_points_h"):
@@ -361,7 +372,8 @@ async def stream_iterations(dut):
         words = to_words(fmt, np.r_[z, u])
         z_reg = lay["z"]
         tb.gold[z_reg.base:z_reg.base + len(words)] = words  # z then u: one run of the buffer
-        st = run(tb.ukf.steps["iteration"], tb.gold)
+        ran = tb.prologue.steps("iteration")  # noise first after the loads of Q and R
+        st = tb.prologue.run("iteration", tb.gold, ran)
         await source.send(AxiStreamFrame(pack(spec["s_axis"]["fields"], words)))
         await Fall(dut.s_axis_tready)
         taken = tb.now()
@@ -375,7 +387,8 @@ async def stream_iterations(dut):
         assert got == want, (it, [hex(g) for g in got], [hex(w) for w in want])
         user = frame.tuser if isinstance(frame.tuser, int) else frame.tuser[0]
         assert user == (st.pivot | st.nan << 1), (it, user, st)
-        assert latency == spec["latency_cycles"], (latency, spec["latency_cycles"])
+        extra = sum(tb.manifest["cycles"][s] for s in ran if s != "iteration")
+        assert latency == spec["latency_cycles"] + extra, (latency, spec["latency_cycles"], extra)
         dut._log.info("measurement %d: estimate after %d cycles", it, latency)
         # the status as the bus sees it: done, and the stream idle again
         status = await tb.read_reg("STATUS")

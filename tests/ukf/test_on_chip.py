@@ -95,17 +95,26 @@ def test_tracker_on_chip_rtl(build_root):
 
 
 def test_iteration_program_and_map():
-    """One step, iteration, at CTRL.step = 3; u after z; the moved points written by the
-    core (read-only); the schedule within 10 % of its multiply-adds at P = 1."""
+    """Two steps, iteration at CTRL.step = 3 and its prologue noise at 4 (the factors of Q
+    and R and the sigma points' noise rows, which only Q and R change); u after z; the moved
+    points written by the core (read-only); the iteration's schedule within 10 % of its
+    multiply-adds at P = 1; the two hold the three steps' multiply-adds and the models'."""
     p = UkfParams(app=NANOSAT, on_chip=True)
     progs = programs(p)
-    assert list(progs.steps) == ["iteration"]
+    assert list(progs.steps) == ["iteration", "noise"] and progs.prologue == ("noise", "iteration", ("Q", "R"))
     assert p.nu == 3 and progs.layout["u"].base == progs.layout["z"].base + p.m
-    (sched,) = schedules(p, progs).values()
+    sched = schedules(p, progs)["iteration"]
     fmas = progs.iteration.fma_count
     assert fmas <= sched.cycles <= 1.1 * fmas
     off = programs(UkfParams())
-    assert fmas == sum(s.fma_count for s in off.steps.values()) + p.N * p.models.fma_count
+    assert fmas + progs.noise.fma_count == sum(s.fma_count for s in off.steps.values()) + p.N * p.models.fma_count
+    # noise writes nothing the iteration writes, and reads only Q, R and constants of the bus's
+    written = {d for op in progs.iteration.ops for d in op.dst}
+    assert not written & {d for op in progs.noise.ops for d in op.dst}
+    lay = progs.layout
+    bus_read = {a for op in progs.noise.ops for a in op.reads if a < lay["P"].base + lay["P"].size or
+                lay["z"].base <= a < lay["z"].base + p.m + p.nu}
+    assert not bus_read  # (not x, P, z or u)
 
 
 @pytest.fixture(scope="module")
@@ -118,10 +127,10 @@ def generated(build_root):
 def test_manifest(generated):
     m = json.loads((generated / "ukf_oc.json").read_text())
     p = UkfParams(**m["parameters"])
-    (sched,) = schedules(p).values()
-    assert m["cycles"] == {"iteration": sched.cycles + OVERHEAD}
+    scheds = schedules(p)
+    assert m["cycles"] == {name: s.cycles + OVERHEAD for name, s in scheds.items()}
     ctrl = next(r for r in m["registers"] if r["name"] == "CTRL")
-    assert next(f for f in ctrl["fields"] if f["name"] == "step")["values"] == {"iteration": 3}
+    assert next(f for f in ctrl["fields"] if f["name"] == "step")["values"] == {"iteration": 3, "noise": 4}
     ident = next(r for r in m["registers"] if r["name"] == "ID")
     assert next(f for f in ident["fields"] if f["name"] == "version")["reset"] == 2
     regions = {mm["name"]: mm for mm in m["memories"]}
@@ -372,7 +381,7 @@ def test_ukf_page_table_is_the_schedules():
         pes, chip, steps, fmas = (int(c.strip().replace(",", "")) for c in row.strip("|").split("|"))
         p = UkfParams(app=NANOSAT, on_chip=True, pes=pes)
         progs = programs(p)
-        (sched,) = schedules(p, progs).values()
+        sched = schedules(p, progs)["iteration"]
         assert (chip, fmas) == (sched.cycles + OVERHEAD, progs.iteration.fma_count), row
         assert steps == sum(s.cycles + OVERHEAD for s in schedules(UkfParams(pes=pes)).values()), row
 
@@ -413,7 +422,7 @@ def test_config_file_names_the_application(tmp_path):
     proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "out")
     assert proc.returncode == 0, proc.stderr
     m = json.loads((tmp_path / "out" / "ukf.json").read_text())
-    assert (m["parameters"]["app"], m["parameters"]["on_chip"], list(m["cycles"])) == (NANOSAT, True, ["iteration"])
+    assert (m["parameters"]["app"], m["parameters"]["on_chip"], list(m["cycles"])) == (NANOSAT, True, ["iteration", "noise"])
     cfg.write_text('app = "nosuch:App"\non-chip = true\n')
     proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "bad")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and f"(from {cfg} (app))" in proc.stderr, \
