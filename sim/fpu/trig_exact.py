@@ -18,7 +18,7 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 
-from kfgen.hdl.arith.float.format import FLAG_NV, FLAG_NX, FloatFormat
+from kfgen.hdl.arith.float.format import FLAG_NV, FloatFormat
 
 from .exp_exact import _format, _round_ratio
 from ..float_ref import decode

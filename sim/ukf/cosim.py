@@ -48,7 +48,7 @@ from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
-from kfgen.sim.linalg.exec import Status, from_words, run
+from kfgen.sim.linalg.exec import Status, from_words
 from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
 
 from .app import checked_scenario, load_app
