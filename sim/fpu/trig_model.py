@@ -15,9 +15,9 @@ import numpy as np
 
 from kfgen.hdl.arith.float.exact import format_consts, round_magnitude
 from kfgen.hdl.arith.float.format import FLAG_NV, FLAG_NX, FLAG_UF, FloatFormat
-from kfgen.hdl.arith.float.trig_plan import FUNCTIONS, trig_plan
+from kfgen.hdl.arith.float.trig_plan import FUNCTIONS, constant_word, trig_plan
 
-__all__ = ["trig_word", "trig_model", "constant_word"]
+__all__ = ["trig_word", "trig_model"]
 
 
 def _decode(k, w: int, ftz: bool):
@@ -33,18 +33,6 @@ def _decode(k, w: int, ftz: bool):
         n = frac.bit_length()
         return 1, s, frac << (k.p - n), k.emin - (k.p - n)
     return 1, s, frac | k.hidden, field - k.bias
-
-
-def constant_word(fmt, value: str, sign: int = 0) -> int:
-    """The word of ``pi``, ``pi/2``, ``pi/4`` or ``3pi/4`` rounded to nearest (the specials
-    of atan2), with ``sign``."""
-    from kfgen.hdl.arith.float.trig_plan import pi_floor
-    k = format_consts(fmt)
-    scale = {"pi": (1, 0), "pi/2": (1, 1), "pi/4": (1, 2), "3pi/4": (3, 2)}[value]
-    n = k.p + 8
-    mant = pi_floor(n) * scale[0]
-    word, _ = round_magnitude(k, sign, mant, -n - scale[1], True, False)
-    return word
 
 
 def _cordic(plan, x: int, y: int, z: int, table, rotate: bool):
@@ -107,15 +95,15 @@ def _atan2(k, plan, wy: int, wx: int, ftz: bool) -> tuple[int, int]:
     if ky == 0:
         if sx == 0:  # +0, a positive x, +inf
             return sy << k.sshift, 0
-        return constant_word(fmt, "pi", sy), FLAG_NX
+        return constant_word(fmt, (1, 0), sy), FLAG_NX
     if ky == 2:
         if kx == 2:
-            return constant_word(fmt, "3pi/4" if sx else "pi/4", sy), FLAG_NX
-        return constant_word(fmt, "pi/2", sy), FLAG_NX
+            return constant_word(fmt, (3, 2) if sx else (1, 2), sy), FLAG_NX
+        return constant_word(fmt, (1, 1), sy), FLAG_NX
     if kx == 0:
-        return constant_word(fmt, "pi/2", sy), FLAG_NX
+        return constant_word(fmt, (1, 1), sy), FLAG_NX
     if kx == 2:
-        return (sy << k.sshift, 0) if sx == 0 else (constant_word(fmt, "pi", sy), FLAG_NX)
+        return (sy << k.sshift, 0) if sx == 0 else (constant_word(fmt, (1, 0), sy), FLAG_NX)
     d = ey - ex
     if sx == 0 and d < -plan.tiny_bits:
         # atan(q) ~ q = |y| / x: a restoring division, div_bits + 1 quotient bits.

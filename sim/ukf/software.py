@@ -121,6 +121,8 @@ class Prologue:
         self.ukf = ukf
         self.spec = getattr(ukf, "prologue", None)  # (the IMM's programs have none)
         self.stale = True
+        regions = [ukf.layout[r] for r in self.spec[2]] if self.spec is not None else []
+        self._words = [(reg.base, reg.base + reg.size) for reg in regions]
 
     def wrote(self, name: str) -> None:
         """Region ``name`` was written."""
@@ -129,8 +131,7 @@ class Prologue:
 
     def wrote_word(self, address: int) -> None:
         """The word at ``address`` (the layout's) was written."""
-        if self.spec is not None and any(self.ukf.layout[r].base <= address < self.ukf.layout[r].base
-                                         + self.ukf.layout[r].size for r in self.spec[2]):
+        if any(lo <= address < hi for lo, hi in self._words):
             self.stale = True
 
     def steps(self, name: str) -> list[str]:

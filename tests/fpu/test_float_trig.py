@@ -19,8 +19,8 @@ import pytest
 
 from kfgen.hdl.arith.float.format import FLAG_NV, FLAG_NX, FLAG_UF, FloatFormat
 from kfgen.hdl.arith.float.params import FpuParams
-from kfgen.hdl.arith.float.trig import FloatAtan2, FloatSin, constant_word
-from kfgen.hdl.arith.float.trig_plan import _two_over_pi_floor, pi_floor, trig_plan
+from kfgen.hdl.arith.float.trig import FloatAtan2, FloatSin
+from kfgen.hdl.arith.float.trig_plan import _two_over_pi_floor, constant_word, pi_floor, trig_plan
 from kfgen.sim.float_ref import round_to_format
 from kfgen.sim.fpu.trig_exact import near_pi_half_words, random_words, trig_exact, trig_exact_word
 from kfgen.sim.fpu.trig_model import trig_model

@@ -14,19 +14,9 @@ from amaranth.lib.wiring import In, Out
 from .format import FLAG_NV, FLAG_NX, FLAG_UF, FloatFormat
 from .round import (ROUND_BOUNDARIES, ROUND_COUNT, Cuts, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
-from .trig_plan import pi_floor, trig_plan
+from .trig_plan import constant_word, trig_plan
 
-__all__ = ["FloatSin", "FloatCos", "FloatAtan2", "constant_word"]
-
-
-def constant_word(fmt: FloatFormat, multiple: tuple[int, int], sign: int = 0) -> int:
-    """``multiple[0] pi / 2**multiple[1]`` rounded to nearest in ``fmt`` with ``sign`` (the
-    results of atan2's special operands): pi's bits from :func:`~.trig_plan.pi_floor`, and
-    its infinite tail as a sticky bit."""
-    from .exact import format_consts, round_magnitude
-    k = format_consts(fmt)
-    n = k.p + 8
-    return round_magnitude(k, sign, pi_floor(n) * multiple[0], -n - multiple[1], True, False)[0]
+__all__ = ["FloatSin", "FloatCos", "FloatAtan2"]
 
 
 class _TrigUnit(FloatUnit):

@@ -30,9 +30,10 @@ from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
 
+from .exp_plan import _nearest
 from .format import FloatFormat
 
-__all__ = ["TrigPlan", "trig_plan", "pi_floor", "FUNCTIONS", "RANGE_LIMIT"]
+__all__ = ["TrigPlan", "trig_plan", "pi_floor", "constant_word", "FUNCTIONS", "RANGE_LIMIT"]
 
 #: The functions, and their operand count.
 FUNCTIONS = {"sin": 1, "cos": 1, "atan2": 2}
@@ -74,6 +75,16 @@ def pi_floor(n: int) -> int:
         g += 32
 
 
+def constant_word(fmt, multiple: tuple[int, int], sign: int = 0) -> int:
+    """``multiple[0] pi / 2**multiple[1]`` rounded to nearest in ``fmt`` with ``sign`` (the
+    results of atan2's special operands): pi's bits from :func:`pi_floor`, and its infinite
+    tail as a sticky bit."""
+    from .exact import format_consts, round_magnitude
+    k = format_consts(fmt)
+    n = k.p + 8
+    return round_magnitude(k, sign, pi_floor(n) * multiple[0], -n - multiple[1], True, False)[0]
+
+
 def _pi(n: int) -> tuple[Fraction, Fraction]:
     lo = pi_floor(n)
     return Fraction(lo, 1 << n), Fraction(lo + 1, 1 << n)
@@ -97,18 +108,10 @@ def _atan_pow2(i: int, n: int) -> tuple[Fraction, Fraction]:
     return Fraction(s - err, 1 << bits), Fraction(s + err, 1 << bits)
 
 
-def _nearest(lo: Fraction, hi: Fraction, bits: int):
-    """``round(v * 2**bits)`` for every ``v`` in ``[lo, hi]``, or ``None`` if a tie point is
-    inside."""
-    a, b = lo * (1 << bits) + Fraction(1, 2), hi * (1 << bits) + Fraction(1, 2)
-    fa, fb = a.numerator // a.denominator, b.numerator // b.denominator
-    return fa if fa == fb else None
-
-
 def _decide(interval, bits: int) -> int:
     """Round to nearest at ``bits`` the value ``interval(n)`` brackets ever more tightly."""
     n = bits + 24
-    while (got := _nearest(*interval(n), bits)) is None:
+    while (got := _nearest(*interval(n), 1 << bits)) is None:
         n += 32
     return got
 
