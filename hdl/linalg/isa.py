@@ -83,6 +83,11 @@ def _max_word(fmt, a, b):
     return max_word(fmt, a, b)
 
 
+def _copysign_word(fmt, a, b):
+    from .units import copysign_word
+    return copysign_word(fmt, a, b), None
+
+
 @dataclass(frozen=True)
 class Unit:
     """One executing unit of the engine.
@@ -147,6 +152,7 @@ UNITS: dict[str, Unit] = {u.name: u for u in (
     Unit("sin", ("a",), "sin_latency", "sin_interval", optional=True, hardware=_trig("sin")),
     Unit("cos", ("a",), "cos_latency", "cos_interval", optional=True, hardware=_trig("cos")),
     Unit("atan2", ("a", "b"), "atan2_latency", "atan2_interval", optional=True, hardware=_trig("atan2")),
+    Unit("copysign", ("a", "b"), None, optional=True, word=_copysign_word),
 )}
 
 

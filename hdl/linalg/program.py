@@ -11,7 +11,8 @@ Pure Python (no Amaranth import). An operation is one of
   square root;
 * :class:`Copy` ``dst = src``, the word unchanged, on the memory's move unit (no PE);
 * :class:`Exp` ``exp(a)`` on a shared pipelined exponential (the IMM's likelihoods), and
-  :class:`Max` ``max(a, b)`` on a comparator (latency 0, like the move unit). An engine has
+  :class:`Max` ``max(a, b)`` on a comparator and :class:`CopySign` (a sign bit moved) (latency
+  0, like the move unit). An engine has
   these units only when one of its programs uses them.
 
 The program's order is its meaning: an operation reads what earlier operations wrote (the
@@ -27,7 +28,7 @@ from dataclasses import dataclass, field
 from . import isa
 from .isa import Check
 
-__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "Sin", "Cos", "Atan2", "Program",
+__all__ = ["Region", "Layout", "Dot", "Div", "Sqrt", "Copy", "Exp", "Max", "CopySign", "Sin", "Cos", "Atan2", "Program",
            "UNITS", "OPS"]
 
 #: The executing units' names, in the program store's order (:data:`.isa.UNITS`).
@@ -198,6 +199,13 @@ class Max(_Binary):
     UNIT = "max"
 
 
+class CopySign(_Binary):
+    """``dst = copysign(a, b)``, exact: ``a``'s magnitude with ``b``'s sign bit (IEEE 754
+    ``copySign``, a NaN's payload kept, no flags), in the result's register (latency 0)."""
+
+    UNIT = "copysign"
+
+
 class Sqrt(_Unary):
     """``dst = sqrt(a)`` on the shared square root."""
 
@@ -252,7 +260,7 @@ class Atan2(_Binary):
 
 
 #: The operation class of each unit but the FMA's (:class:`Dot`), by the unit's name.
-OPS = {cls.UNIT: cls for cls in (Div, Max, Sqrt, Exp, Sin, Cos, Atan2)} | {"copy": Copy}
+OPS = {cls.UNIT: cls for cls in (Div, Max, CopySign, Sqrt, Exp, Sin, Cos, Atan2)} | {"copy": Copy}
 
 
 @dataclass

@@ -235,6 +235,13 @@ def max_word(fmt, a, b):
     return y, nan
 
 
+def copysign_word(fmt, a, b):
+    """``copysign(a, b)`` of two ``fmt`` words as :class:`~.program.CopySign` defines it:
+    ``a``'s bits with ``b``'s sign bit (IEEE 754 ``copySign``, a bit operation: no flags)."""
+    w = fmt.width
+    return Cat(a[:w - 1], b[w - 1])
+
+
 class SharedUnit(_Unit):
     """The divider (``a / b``), the square root (``sqrt(a)``), the exponential (``exp(a)``),
     the move unit (``a``) or the comparator (``max(a, b)``): one issue every
@@ -243,7 +250,7 @@ class SharedUnit(_Unit):
 
     Parameters
     ----------
-    kind : "div", "sqrt", "exp", "copy" or "max"
+    kind : "div", "sqrt", "exp", "copy", "max", "copysign" or a trig unit
     fmt, geometry, layout, stages
         As :class:`ProcessingElement`; ``stages`` the unit's latency (``None``: its default).
     cycles_per_op : int

@@ -28,6 +28,10 @@ def _docs() -> dict[str, Doc]:
                      "crossbar; by default 2P up to P = 2, P from 3 to 8, 8 above", "", "an integer in 2..2M"),
         "format": engine_docs()["format"],
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
+        "form": Doc("the covariance's form: ldl, the chapter's (P in the buffer, factored by LDL^T every sig_gen), "
+                    "or sqrt, the square-root form (a Cholesky factor S of P = S S^T in region sqrtP, updated by "
+                    "Householder triangularisation: stays positive definite where ldl's P cancels to indefinite; "
+                    "docs/ukf.md)", "", "ldl (the default) or sqrt, any case"),
         "app": Doc("the application the core is sized for (its n, m, nw, nv and W0) and, on an on_chip core, the one "
                    "whose f and h are compiled into it", "", "MODULE:CLASS or FILE.py:CLASS of a "
                    "kfgen.sim.ukf.app.UkfApplication subclass"),

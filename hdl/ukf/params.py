@@ -17,7 +17,12 @@ from ..arith.float.format import FloatFormat
 from ..describe import ParamError
 from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
 
-__all__ = ["UkfParams", "SIZE_MAX", "default_banks"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMS", "default_banks"]
+
+#: The covariance forms: ``ldl``, the chapter's (P in the buffer, factored by LDL^T each
+#: sig_gen), and ``sqrt``, the square-root form (the Cholesky factor of P in the buffer,
+#: kept by orthogonal transformations: :mod:`kfgen.hdl.ukf.programs`).
+FORMS = ("ldl", "sqrt")
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
@@ -60,6 +65,10 @@ class UkfParams:
         ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
     w0 : float
         Weight W_0 of the centre sigma point, 0 <= W0 < 1 (eq. 5).
+    form : "ldl" or "sqrt"
+        The covariance's form (:data:`FORMS`): ``ldl`` keeps P and factors it every sig_gen;
+        ``sqrt`` keeps a lower-triangular factor S of P = S S^T (region ``sqrtP``) and
+        updates it by Householder triangularisation, never forming P.
     app : str or None
         The application (``module:Class`` or ``file.py:Class``) the core is sized for; with
         ``on_chip`` its f and h are compiled into the core (:mod:`kfgen.hdl.ukf.models`).
@@ -97,6 +106,7 @@ class UkfParams:
     banks: int | None = None
     format: str = "binary32"
     w0: float = 0.0
+    form: str = "ldl"
     app: str | None = None
     on_chip: bool = False
     streams: bool = False
@@ -128,6 +138,9 @@ class UkfParams:
         if isinstance(self.w0, bool) or not isinstance(self.w0, (int, float)) or not math.isfinite(self.w0) \
                 or not 0 <= self.w0 < 1:
             raise ParamError("w0", f"must be a number with 0 <= W0 < 1, not {self.w0!r}")
+        if not isinstance(self.form, str) or self.form.lower() not in FORMS:
+            raise ParamError("form", f"must be {' or '.join(FORMS)}, not {self.form!r}")
+        object.__setattr__(self, "form", self.form.lower())
         if not isinstance(self.on_chip, bool):
             raise ParamError("on_chip", f"must be true or false, not {self.on_chip!r}")
         if self.app is not None and (not isinstance(self.app, str) or not self.app):

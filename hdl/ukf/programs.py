@@ -31,10 +31,10 @@ from math import isqrt
 from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
-from ..linalg.program import Copy, Div, Dot, Layout, Program, Sqrt
+from ..linalg.program import Copy, CopySign, Div, Dot, Layout, Program, Sqrt
 from .params import UkfParams
 
-__all__ = ["UkfPrograms", "build_ukf", "simplex_rows"]
+__all__ = ["UkfPrograms", "build_ukf", "simplex_rows", "triangularize", "qr_columns"]
 
 
 def _blocks(params):
@@ -84,14 +84,19 @@ class UkfPrograms:
         prologue) of a core with f and h on chip, else sig_gen, predict and update."""
         if self.iteration is not None:
             return {"iteration": self.iteration, "noise": self.noise}
-        return {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
+        three = {"sig_gen": self.sig_gen, "predict": self.predict, "update": self.update}
+        return three if self.noise is None else {**three, "noise": self.noise}
 
     @property
     def prologue(self):
-        """``(pre, main, regions)`` of a core with f and h on chip: a start of ``main``
-        runs ``pre`` first when software has written one of ``regions`` since ``pre`` last
-        ran to its end (and after reset); ``None`` for the three-step core."""
-        return ("noise", "iteration", ("Q", "R")) if self.noise is not None else None
+        """``(pre, main, regions)`` of a core with a ``noise`` step (f and h on chip, or the
+        sqrt form): a start of ``main`` (``iteration``, or ``sig_gen``) runs ``pre`` first
+        when software has written one of ``regions`` since ``pre`` last ran to its end (and
+        after reset); ``None`` for the chapter's three-step core, whose sig_gen factors Q and
+        R itself every time."""
+        if self.noise is None:
+            return None
+        return ("noise", "iteration" if self.iteration is not None else "sig_gen", ("Q", "R"))
 
 
 def build_ukf(params: UkfParams) -> UkfPrograms:
@@ -103,8 +108,9 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     W1, c, d = simplex_rows(M, params.w0)
     lay = Layout()
     # The processor's buffer (names fixed by the issue), then work, then constants.
+    sq = params.form == "sqrt"
     x = lay.add("x", n, 1, "bus")
-    P = lay.add("P", n, n, "bus")
+    P = lay.add("sqrtP" if sq else "P", n, n, "bus")  # the sqrt form: S, P = S S^T
     Q = lay.add("Q", nw, nw, "bus")
     R = lay.add("R", nv, nv, "bus")
     chi = lay.add("sigma_points", N, M, "bus")
@@ -126,25 +132,31 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     Tr = lay.add("Tr", M)
     dx = lay.add("dx", n, N - 1)  # predict's differences from point 0, kept for Pxz
     dlx = lay.add("delta_x", n)
-    Gx = lay.add("Gx", n, n)
+    if not sq:
+        Gx = lay.add("Gx", n, n)
     dz = lay.add("dz", m, N - 1)
     dlz = lay.add("delta_z", m)
-    Gs = lay.add("Gs", m, m)
-    Gxz = lay.add("Gxz", n, m)
-    S = lay.add("S", m, m)
-    FS = lay.add("FS", m, m)  # F of S's LDL^T below the diagonal (23)
-    LS = lay.add("LS", m, m)
-    DS = lay.add("DS", m)
-    rDS = lay.add("rDS", m)
-    Pxz = lay.add("Pxz", n, m)
-    Y = lay.add("Yfw", n, m)  # forward substitution
-    U = lay.add("Udiv", n, m)  # after the division by D
-    K = lay.add("K", n, m)
+    if not sq:
+        Gs = lay.add("Gs", m, m)
+        Gxz = lay.add("Gxz", n, m)
+        S = lay.add("S", m, m)
+        FS = lay.add("FS", m, m)  # F of S's LDL^T below the diagonal (23)
+        LS = lay.add("LS", m, m)
+        DS = lay.add("DS", m)
+        rDS = lay.add("rDS", m)
+        Pxz = lay.add("Pxz", n, m)
+        Y = lay.add("Yfw", n, m)  # forward substitution
+        U = lay.add("Udiv", n, m)  # after the division by D
+        K = lay.add("K", n, m)
     inn = lay.add("innov", m)
     one = lay.const("one", [_word(fmt, Fraction(1))])(0, 0)
     w1 = lay.const("w1", [_word(fmt, W1)])(0, 0)
     sig_c = lay.const("sigma_c", [_word(fmt, v) for v in c])
     sig_d = lay.const("sigma_d", [_word(fmt, v) for v in d])
+    if sq:  # the square roots of the weights, for the triangularisations' columns
+        sw = lay.const("sqrt_w", [_word(fmt, _sqrt(W1)), _word(fmt, _sqrt(Fraction(params.w0)))])
+        sw1, sw0 = sw(0, 0), (sw(0, 1) if params.w0 else None)
+        K = qr_columns(params)
     ti = {ij: t for t, ij in enumerate(tri)}
 
     def A(i, j):  # P^a's lower triangle, block by block (4)
@@ -158,7 +170,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     # With f and h on chip, the factors of Q and R and the sigma points' noise rows (x^a is 0
     # there) change only when software writes Q or R: a step of their own, ``noise``, which
     # the core runs before an iteration that follows such a write (a prologue).
-    nz = Program("noise", lay, fmt) if params.on_chip else sg
+    nz = Program("noise", lay, fmt) if params.on_chip or sq else sg
 
     def ldl(prog, nb, a, f, l, dd, rd):
         """LDL^T of an nb x nb block by (23)-(24), column by column; F_ij = L_ij D_j.
@@ -187,11 +199,13 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
 
     lsg = {}
     for block, (b0, b1) in enumerate(_blocks(params)):
+        if sq and block == 0:
+            continue  # the sqrt form keeps P's factor: nothing to factor
         _, la = ldl(sg if block == 0 else nz, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
             lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
         lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
-    for j in range(M):  # sqrt(D) (22), folded into sigma's rows
+    for j in range(n if sq else 0, M):  # sqrt(D) (22), folded into sigma's rows
         prog = sg if j < n else nz
         prog.emit(Sqrt(s(j), D(j)))
         prog.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
@@ -199,6 +213,12 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
 
     def l2(rr, j):  # L2's entry (unit diagonal)
         return one if rr == j else lsg[rr, j]
+
+    def cterm(rr, k):  # L1's entry times c_k (sigma's row k): L2 g, or S's entry times c_k
+        return (P(rr, k), sig_c(0, k), False) if sq and rr < n else (l2(rr, k), g(k), False)
+
+    def dterm(rr, k):  # L1's entry times d_k
+        return (P(rr, k), sig_d(0, k), False) if sq and rr < n else (l2(rr, k), e(k), False)
 
     for block, (b0, b1) in enumerate(_blocks(params)):
         prog = sg if block == 0 else nz
@@ -212,14 +232,14 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                 dst = Tr(rr) if k == rr else T(ti[rr, k])
                 if k == b0:
                     dst = chi(1, rr)  # chi_1 = T_r,b0: sigma's column 1 is all c
-                prog.emit(Dot(dst, base[k + 1], [(l2(rr, k), g(k), False)]))
+                prog.emit(Dot(dst, base[k + 1], [cterm(rr, k)]))
                 base[k] = dst
             for i in range(N):  # chi_i = x^a + L1 sigma_i (8)
                 if i == 0:
                     src, term = xa, None
                 else:
                     src = base[max(b0, i - 1)] if max(b0, i - 1) <= rr else xa
-                    term = (l2(rr, i - 2), e(i - 2), False) if b0 <= i - 2 <= rr else None
+                    term = dterm(rr, i - 2) if b0 <= i - 2 <= rr else None
                 if term is not None:
                     prog.emit(Dot(chi(i, rr), src, [term]))
                 elif src is not None and src != chi(i, rr):
@@ -252,6 +272,9 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     moments(pr, chif, n, dx, dlx)
     for i in range(n):  # x^- = chi_0 + delta (10)
         pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
+    if sq:
+        return _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, P, x, dx, dlx, dz, dlz,
+                          moments, inn)
     covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
                lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
 
@@ -329,3 +352,145 @@ def _iteration(params, models, lay, sg, pr, up, u) -> Program:
     apply(models.h, "h", h_inputs, chih)
     it.ops.extend(up.ops)
     return it
+
+
+def qr_columns(params) -> int:
+    """Columns of the square-root form's triangularisations: the N - 1 points' weighted
+    deviations, and point 0's when W0 > 0 (a zero weight adds nothing)."""
+    return params.N - 1 + (1 if params.w0 else 0)
+
+
+#: Longest sum a triangularisation accumulates in one chain (:func:`triangularize`): longer
+#: ones are cut into chunks summed side by side, a shorter critical path for one more
+#: multiply-add per chunk.
+CHUNK = 8
+
+
+def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
+    """Lower-triangular L with L L^T = A A^T for the ``rows x cols`` matrix A at ``a(r, c)``
+    (overwritten), by Householder reflections from the right, row by row: L's entry
+    ``(i, j)``, j <= i, is written where ``out(i, j)`` says. Needs rows <= cols.
+
+    Row i's reflection takes x = A[i, i:] to (alpha, 0, ..., 0), alpha = -sign(x_0) |x|:
+    v = x - alpha e_0, v_0 = x_0 + sign(x_0) |x| (no cancellation: ``CopySign`` gives the
+    sign), and every later row y becomes y - (y.v) / (s v_0) v, s = sign(x_0) |x|, where
+    y.v = y.x + y_0 s is accumulated from y.x, which needs no square root. |x|^2 is checked
+    as a pivot: a zero row (a factor of deficient rank) or a NaN sets err_pivot. L's
+    ``out(i, j)`` returns ``(address, check)``. L's
+    diagonal may be negative: L L^T does not see the signs of L's columns, and a column's
+    sign flips with every quantity derived from it (the square-root form's gain included).
+
+    Cost, for rows R and columns C: sum over i of (C - i)(1 + 2(R - 1 - i)) multiply-adds
+    plus 4 a row and 2 a pair of rows for the scalars, R square roots and R - 1 divisions."""
+    if rows > cols:
+        raise ValueError(f"{label}: {rows} rows need at least as many columns, not {cols}")
+    w = lay.add(f"{label}_row", rows, 6)  # |x|^2, |x|, s, v_0 (then |v_0|), 1 / (s v_0), sign(x_0)
+    pair = lay.add(f"{label}_pair", rows, rows)  # y.x then y.v, by (reflection, row)
+    scale = lay.add(f"{label}_scale", rows, rows)  # (y.v) / (s v_0)
+    chunks = -(-cols // CHUNK)
+    part = lay.add(f"{label}_part", rows * rows, max(1, chunks - 1))  # a long sum's partial sums
+
+    def dot(dst, terms, slot, check=None):
+        """``dst = sum(terms)`` in chunks of at most CHUNK terms summed side by side, the
+        partial sums added at the end of the first chunk's (a shorter chain)."""
+        cut = -(-len(terms) // CHUNK)
+        size = -(-len(terms) // cut)
+        groups = [terms[k:k + size] for k in range(0, len(terms), size)]
+        for k, grp in enumerate(groups[1:]):
+            prog.emit(Dot(part(slot, k), None, grp))
+        prog.emit(Dot(dst, None, groups[0] + [(one, part(slot, k), False) for k in range(len(groups) - 1)],
+                      check))
+
+    for i in range(rows):
+        ss, sg, sgn, v0, rb, sg1 = (w(i, k) for k in range(6))
+        cols_i = range(i, cols)
+        dot(ss, [(a(i, j), a(i, j), False) for j in cols_i], i * rows + i, "pivot")
+        for r in range(i + 1, rows):
+            dot(pair(i, r), [(a(r, j), a(i, j), False) for j in cols_i], i * rows + r)
+        prog.emit(Sqrt(sg, ss))
+        prog.emit(CopySign(sgn, sg, a(i, i)))
+        prog.emit(Copy(out(i, i)[0], sg, out(i, i)[1]))  # -sign(x_0) alpha = |x|
+        if i + 1 == rows:
+            break
+        prog.emit(CopySign(sg1, one, a(i, i)))
+        prog.emit(Dot(v0, a(i, i), [(one, sgn, False)]))
+        den = rb  # s v_0 = |x|^2 + s x_0 (beside v_0, not after it), then its reciprocal in place
+        prog.emit(Dot(den, ss, [(sgn, a(i, i), False)]))
+        prog.emit(Div(rb, one, den))
+        prog.emit(CopySign(v0, v0, one))  # |v_0|
+        for r in range(i + 1, rows):
+            prog.emit(Dot(pair(i, r), pair(i, r), [(a(r, i), sgn, False)]))  # y.v
+            prog.emit(Dot(scale(i, r), None, [(pair(i, r), rb, False)]))
+            # -sign(x_0) (y_0 - scale v_0), exactly: the column's sign follows the diagonal's
+            prog.emit(Dot(out(r, i)[0], None, [(sg1, a(r, i), True), (scale(i, r), v0, False)], out(r, i)[1]))
+            for j in range(i + 1, cols):
+                prog.emit(Dot(a(r, j), a(r, j), [(scale(i, r), a(i, j), True)]))
+
+
+def _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, S, x, dx, dlx, dz, dlz, moments, inn):
+    """The square-root form's predict, update and iteration (:func:`build_ukf` has built
+    sig_gen, noise and predict's moments): A's columns are the points' deviations from the
+    mean, weighted by sqrt(W) (point 0's only when W0 > 0), so that A A^T is the covariance.
+
+    * predict: S^- = the triangular factor of A_x (three-step core only);
+    * update: the stacked [A_z; A_x] ((m + n) x K) triangularised gives
+      [[S_z, 0], [Kb, S^+]] with S_z S_z^T = P_zz, Kb = P_xz S_z^-T and
+      S^+ S^+^T = P^- - P_xz P_zz^-1 P_xz^T = P^+: the update's cancellation happens inside
+      orthogonal transformations, so the result is always a factor of a positive
+      semidefinite matrix; x^+ = x^- + Kb (S_z^-1 (z - z^)), by forward substitution (the
+      gain K = Kb S_z^-1 itself is not needed)."""
+    n, m, N = params.n, params.m, params.N
+    fmt = params.fmt
+
+    def columns(prog, rows, dd, dl, label):
+        """A's rows from differences ``dd`` and offsets ``dl``: sqrt(W1) (d_k - delta)
+        for the points 1..N-1, then sqrt(W0) (0 - delta) when W0 > 0."""
+        neg = lay.add(f"{label}_offset", len(rows))
+        for r, (i, at) in enumerate(rows):
+            prog.emit(Dot(neg(r), None, [(sw1, dl(i), True)]))
+            for k in range(N - 1):
+                prog.emit(Dot(at(k), neg(r), [(sw1, dd(i, k), False)]))
+            if sw0 is not None:
+                prog.emit(Dot(at(N - 1), None, [(sw0, dl(i), True)]))
+
+    if not params.on_chip:  # S^- for sig_gen (the on-chip iteration goes straight to update)
+        Ap = lay.add("Apred", n, K)
+        columns(pr, [(i, lambda k, i=i: Ap(i, k)) for i in range(n)], dx, dlx, "Apred")
+        triangularize(pr, lay, "hpred", n, K, Ap, lambda i, j: (S(i, j), "finite"), one)
+
+    up = Program("update", lay, fmt)
+    chih, z = lay["sigma_points_h"], lay["z"]
+    moments(up, chih, m, dz, dlz)
+    for i in range(m):
+        up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
+    Au = lay.add("Aupd", m + n, K)
+    columns(up, [(i, lambda k, i=i: Au(i, k)) for i in range(m)], dz, dlz, "Aupd_z")
+    columns(up, [(i, lambda k, i=i: Au(m + i, k)) for i in range(n)], dx, dlx, "Aupd_x")
+    Sz = lay.add("Sz", m, m)
+    Kb = lay.add("Kb", n, m)
+
+    def out(i, j):
+        if i < m:
+            return Sz(i, j), None
+        return (Kb(i - m, j), None) if j < m else (S(i - m, j - m), "finite")
+    triangularize(up, lay, "hupd", m + n, K, Au, out, one)
+    rSz = lay.add("rSz", m)
+    y = lay.add("ysolve", m)  # S_z^-1 (z - z^), by forward substitution
+    t = lay.add("ypart", m)
+    for i in range(m):
+        up.emit(Div(rSz(i), one, Sz(i, i)))
+    for i in range(m):
+        src = inn(i)
+        if i:
+            up.emit(Dot(t(i), inn(i), [(Sz(i, j), y(j), True) for j in range(i)]))
+            src = t(i)
+        up.emit(Dot(y(i), None, [(src, rSz(i), False)]))
+    for i in range(n):  # x^+ = x^- + Kb y
+        up.emit(Dot(x(i), x(i), [(Kb(i, j), y(j), False) for j in range(m)], "finite"))
+    pd = lay.add("P_diag", n)  # the variances P_ii = sum_j S_ij^2 (the stream ports' output)
+    for i in range(n):
+        up.emit(Dot(pd(i), None, [(S(i, j), S(i, j), False) for j in range(i + 1)]))
+    models = params.models
+    if models is None:
+        return UkfPrograms(params, fmt, lay, sg, pr, up, None, nz)
+    return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u), nz)

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
 
-__all__ = ["ukf_map", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "STEPS", "ON_CHIP_STEPS"]
+__all__ = ["ukf_map", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "SQRT_VERSIONS", "STEPS",
+           "ON_CHIP_STEPS", "SQRT_NOISE"]
 
 #: ID.core of the UKF (ASCII 'U').
 CORE_ID = 0x55
@@ -28,6 +29,9 @@ CORE_ID = 0x55
 MAP_VERSION = 1
 #: ID.version of a core with f and h on chip (``on_chip``): one step, ``iteration``, and ``u``.
 MAP_VERSION_ON_CHIP = 2
+#: ID.version of the square-root form (``form = "sqrt"``: region ``sqrtP`` instead of ``P``,
+#: and the step ``noise``), three-step and on chip.
+SQRT_VERSIONS = {False: 3, True: 4}
 
 
 #: The steps CTRL.step names, and the manifest's ``cycles`` keys.
@@ -49,18 +53,35 @@ ON_CHIP_STEPS = (
 )
 
 
+#: The fourth step of the three-step core in the square-root form.
+SQRT_NOISE = Value("noise", 3, "the factors of Q and R and the sigma points' noise rows; the core runs it before "
+                               "the first sig_gen after a write to Q or R (or reset), or software starts it ahead")
+
+
 def steps(params) -> tuple[Value, ...]:
-    """The steps CTRL.step names for ``params``: :data:`ON_CHIP_STEPS` or :data:`STEPS`."""
-    return ON_CHIP_STEPS if params.on_chip else STEPS
+    """The steps CTRL.step names for ``params``: :data:`ON_CHIP_STEPS`, or :data:`STEPS`
+    (and :data:`SQRT_NOISE` in the square-root form)."""
+    if params.on_chip:
+        return ON_CHIP_STEPS
+    return STEPS + (SQRT_NOISE,) if params.form == "sqrt" else STEPS
+
+
+def _version(params) -> int:
+    if params.form == "sqrt":
+        return SQRT_VERSIONS[params.on_chip]
+    return MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION
 
 
 def _registers(params) -> tuple[Register, ...]:
     fmt = params.fmt
     events = (
         ("done", 1, "the step started last has finished"),
-        ("err_pivot", 2, "a pivot D_j of the LDL^T factorisation (eqs. 23-24) was <= 0 or NaN: P^a or S is "
+        ("err_pivot", 2, "a pivot of a factorisation was <= 0 or NaN: a squared row norm of the Householder "
+                         "triangularisation (a covariance factor of deficient rank), or D_j of Q's or R's LDL^T "
+                         "(not positive definite); the step ran to its end" if params.form == "sqrt" else
+                         "a pivot D_j of the LDL^T factorisation (eqs. 23-24) was <= 0 or NaN: P^a or S is "
                          "not positive definite; the step ended early and the core is idle"),
-        ("err_nan", 3, "a NaN or an infinity reached x or P"),
+        ("err_nan", 3, "a NaN or an infinity reached x or " + ("sqrtP" if params.form == "sqrt" else "P")),
         ("err_busy", 4, "CTRL.start was written while busy and was refused"),
     )
     regs = [
@@ -68,7 +89,7 @@ def _registers(params) -> tuple[Register, ...]:
                  "configuration. Two bus words, low word first.", (
                      Field("core", 0, 8, "ro", f"core identifier, {CORE_ID:#04x} ('U') for the UKF", reset=CORE_ID),
                      Field("version", 8, 4, "ro", "version of this register and memory map",
-                           reset=MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION),
+                           reset=_version(params)),
                      Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
                      Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
                            reset=fmt.frac_bits),
@@ -85,8 +106,8 @@ def _registers(params) -> tuple[Register, ...]:
                                         "STATUS is cleared; the buffer is kept"),
             Field("step", 4, 3, "rw", "the step that start runs; 0..2 and 5..7 are reserved (start does nothing)",
                   values=steps(params)) if params.on_chip else
-            Field("step", 4, 2, "rw", "the step that start runs; 3 is reserved (start does nothing)",
-                  values=steps(params)),
+            Field("step", 4, 2, "rw", "the step that start runs" if params.form == "sqrt" else
+                  "the step that start runs; 3 is reserved (start does nothing)", values=steps(params)),
         )),
         *status_registers(events, "step", params.irq),
     ]
@@ -101,6 +122,11 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
     regions = (
         ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
          f"{column} (n = {n})"),
+        ("sqrtP", n, n, "rw", "state", "lower-triangular factor S of the state covariance, P = S S^T (a Cholesky "
+                                       "factor up to the signs of its columns); after predict S^-, after update S^+; "
+                                       "software writes chol(P0)",
+         f"n x n, row-major; the core reads and writes the lower triangle and diagonal only (n = {n})")
+        if params.form == "sqrt" else
         ("P", n, n, "rw", "state", "state covariance P, full; after predict P^-, after update P^+",
          f"n x n, row-major, both triangles (n = {n})"),
         ("Q", nw, nw, "rw", "input", "process-noise covariance Q, full",

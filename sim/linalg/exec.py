@@ -79,6 +79,7 @@ GOLDEN = {
     "copy": lambda fmt, a, subnormals: (a, 0),
     "exp": _exp,
     "max": _max,
+    "copysign": lambda fmt, a, b, subnormals: ((a & ~(1 << (fmt.width - 1))) | (b & (1 << (fmt.width - 1))), 0),
     "sin": lambda fmt, a, subnormals: trig_word("sin", fmt, a, None, subnormals),
     "cos": lambda fmt, a, subnormals: trig_word("cos", fmt, a, None, subnormals),
     "atan2": lambda fmt, a, b, subnormals: trig_word("atan2", fmt, a, b, subnormals),

@@ -15,15 +15,16 @@ from kfgen.hdl.ukf.params import UkfParams
 from kfgen.sim.linalg.exec import from_words
 
 from .app import Scenario, UkfApplication
-from .reference import AugmentedUKF
+from .reference import AugmentedUKF, SquareRootUKF
 from .software import GoldenCore, complete, initial_words, iteration
 
 __all__ = ["run_reference", "run_golden"]
 
 
-def run_reference(app: UkfApplication, sc: Scenario) -> np.ndarray:
-    """The float64 reference (:class:`~kfgen.sim.ukf.reference.AugmentedUKF`) over ``sc``."""
-    ukf = AugmentedUKF(app.n, app.nw, app.nv, app.m, app.f, app.h, app.W0, app.x0, app.P0, app.Q, app.R)
+def run_reference(app: UkfApplication, sc: Scenario, form: str = "ldl") -> np.ndarray:
+    """The float64 reference (:class:`~kfgen.sim.ukf.reference.AugmentedUKF`, or
+    :class:`~kfgen.sim.ukf.reference.SquareRootUKF` for ``form="sqrt"``) over ``sc``."""
+    ukf = (SquareRootUKF if form == "sqrt" else AugmentedUKF)(app.n, app.nw, app.nv, app.m, app.f, app.h, app.W0, app.x0, app.P0, app.Q, app.R)
     out = np.empty((len(sc.z), app.n))
     for k, (u, z) in enumerate(sc.inputs()):
         ukf.predict(u, app.dt)
@@ -33,10 +34,11 @@ def run_reference(app: UkfApplication, sc: Scenario) -> np.ndarray:
 
 
 def run_golden(app: UkfApplication, sc: Scenario, format: str = "binary32", pes: int = 1,
-               on_chip: str | None = None) -> np.ndarray:
+               on_chip: str | None = None, form: str = "ldl") -> np.ndarray:
     """The bit-exact model of the core sized for ``app`` in ``format`` over ``sc``; with
     ``on_chip`` (the application's spec, ``module:Class``) the core with f and h compiled
-    into it (``kfgen ukf --app SPEC --on-chip``), one ``iteration`` step per measurement.
+    into it (``kfgen ukf --app SPEC --on-chip``), one ``iteration`` step per measurement;
+    ``form`` the core's covariance form (``--form``).
 
     Raises
     ------
@@ -44,8 +46,8 @@ def run_golden(app: UkfApplication, sc: Scenario, format: str = "binary32", pes:
         When a step raises ``err_pivot`` or ``err_nan``.
     """
     chip = {} if on_chip is None else {"app": on_chip, "on_chip": True}
-    core = GoldenCore(UkfParams(**app.core_parameters(), format=format, pes=pes, **chip))
-    for name, words in initial_words(app, core.fmt).items():
+    core = GoldenCore(UkfParams(**app.core_parameters(), format=format, pes=pes, form=form, **chip))
+    for name, words in initial_words(app, core.fmt, form).items():
         complete(core.write(name, words))
     out = np.empty((len(sc.z), app.n))
     for k, (u, z) in enumerate(sc.inputs()):

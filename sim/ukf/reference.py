@@ -32,7 +32,7 @@ import numpy as np
 __all__ = [
     "PivotError", "simplex_weights", "simplex_coefficients", "ldl", "sqrt_ldl",
     "forward_substitution", "back_substitution", "right_divide", "augment", "sigma_points",
-    "Prediction", "predict", "Correction", "update", "AugmentedUKF",
+    "Prediction", "predict", "Correction", "update", "AugmentedUKF", "lower_factor", "SquareRootUKF",
 ]
 
 
@@ -394,4 +394,86 @@ class AugmentedUKF:
         self._prediction = None
         self.x, self.P = c.x, c.P
         self.z_hat, self.S, self.K = c.z_hat, c.S, c.K
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+
+
+def lower_factor(A) -> np.ndarray:
+    """Lower-triangular L with L L^T = A A^T and a diagonal >= 0 (the Cholesky factor), for a
+    (R, K) matrix A with R <= K: the transposed R factor of A^T's QR decomposition, by
+    orthogonal transformations only, its columns' signs turned to make the diagonal >= 0."""
+    A = np.asarray(A, dtype=np.float64)
+    if A.ndim != 2 or A.shape[0] > A.shape[1]:
+        raise ValueError(f"A must be a 2-D matrix with no more rows than columns, not of shape {A.shape}")
+    L = np.linalg.qr(A.T, mode="r").T
+    return L * np.where(np.diag(L) < 0, -1.0, 1.0)  # the positive diagonal: the Cholesky factor
+
+
+class SquareRootUKF(AugmentedUKF):
+    """The square-root form of :class:`AugmentedUKF` (the core's ``--form sqrt``), in float64.
+
+    It keeps ``sqrtP`` = S, lower triangular with P = S S^T, and never forms P: the sigma points are
+    x^a + blockdiag(S, sqrt Q, sqrt R) sigma; predict's S^- is the triangular factor of the
+    moved points' weighted deviations from the mean, A_x (columns sqrt(W_k) (chi_k - x^-));
+    update triangularises [A_z; A_x] into [[S_z, 0], [Kb, S^+]], whence S^+ (whose S^+ S^+^T
+    is P^- - Pxz S^-1 Pxz^T, the cancellation done by orthogonal transformations) and
+    x^+ = x^- + Kb S_z^-1 (z - z^). ``P`` is S S^T, for comparison with the standard form.
+    W0 >= 0: every weight enters as a square root.
+    """
+
+    def __init__(self, n, nw, nv, m, f, h, W0, x0, P0, Q, R):
+        super().__init__(n, nw, nv, m, f, h, W0, x0, P0, Q, R)
+        self.sqrtP = np.linalg.cholesky(self._P)
+        self._sqrtQ, self._sqrtR = sqrt_ldl(self.Q), sqrt_ldl(self.R)
+        self._A_x = None
+
+    @property
+    def P(self) -> np.ndarray:
+        S = getattr(self, "sqrtP", None)
+        return self._P if S is None else S @ S.T
+
+    @P.setter
+    def P(self, value) -> None:
+        self._P = value
+
+    def _sigma_points(self) -> np.ndarray:
+        n, M = self._n, self.M
+        La = np.zeros((M, M))
+        La[:n, :n] = self.sqrtP
+        La[n:n + self._nw, n:n + self._nw] = self._sqrtQ
+        La[n + self._nw:, n + self._nw:] = self._sqrtR
+        xa = np.zeros(M)
+        xa[:n] = self.x
+        return xa[:, np.newaxis] + La @ simplex_coefficients(M, self._W0)
+
+    def _deviations(self, X, mean) -> np.ndarray:
+        A = (X - mean[:, np.newaxis]) * np.sqrt(self.W)
+        return A if self._W0 else A[:, 1:]  # a zero weight adds nothing
+
+    def predict(self, u=None, dt=None) -> None:
+        """sig_gen and predict: x_prior and sqrtP (P_prior) from the current x, sqrtP."""
+        self.chi = self._sigma_points()
+        X = _apply(self.f, "f", self._n, (self.chi[:self._n].T, self.chi[self._n:self._n + self._nw].T,
+                                          [u] * self.chi.shape[1], [dt] * self.chi.shape[1]))
+        self.x = X @ self.W
+        self._X = X
+        self._A_x = self._deviations(X, self.x)
+        self.sqrtP = lower_factor(self._A_x)
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+
+    def update(self, z) -> None:
+        """update: x_post and sqrtP (P_post) from the last prediction and the observation z."""
+        if self._A_x is None:
+            raise RuntimeError("update needs the sigma points of a preceding predict")
+        z = np.asarray(z, dtype=np.float64)
+        if z.shape != (self._m,):
+            raise ValueError(f"z must be a 1-D vector of length {self._m}, not of shape {z.shape}")
+        Z = _apply(self.h, "h", self._m, (self._X.T, self.chi[self._n + self._nw:].T))
+        z_hat = Z @ self.W
+        m = self._m
+        L = lower_factor(np.vstack([self._deviations(Z, z_hat), self._A_x]))
+        Sz, Kb = L[:m, :m], L[m:, :m]
+        self.x = self.x + Kb @ np.linalg.solve(Sz, z - z_hat)
+        self.sqrtP = L[m:, m:]
+        self._A_x = None
+        self.z_hat, self.S, self.K = z_hat, Sz @ Sz.T, np.linalg.solve(Sz.T, Kb.T).T
         self.x_post, self.P_post = self.x.copy(), self.P.copy()

@@ -29,7 +29,7 @@ from kfgen.sim.linalg.exec import Status, from_words, run, to_words
 
 from .app import UkfApplication
 
-__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "Prologue", "GoldenCore", "complete"]
+__all__ = ["CoreIO", "StepError", "initial_words", "covariance", "iteration", "Prologue", "GoldenCore", "complete"]
 
 
 class CoreIO(Protocol):
@@ -70,11 +70,23 @@ class StepError(RuntimeError):
         return StepError(self.step, self.bit, iteration)
 
 
-def initial_words(app: UkfApplication, fmt) -> dict[str, list[int]]:
+def initial_words(app: UkfApplication, fmt, form: str = "ldl") -> dict[str, list[int]]:
     """x0, P0, Q, R as words of ``fmt``, by region name (written once, before the first
-    iteration)."""
+    iteration). A core of the square-root form (``form="sqrt"``) takes P0 as its Cholesky
+    factor, in region ``sqrtP``."""
+    P = ("sqrtP", np.linalg.cholesky(np.asarray(app.P0, dtype=np.float64))) if form == "sqrt" else ("P", app.P0)
     return {name: to_words(fmt, np.ravel(np.asarray(value, dtype=np.float64)))
-            for name, value in (("x", app.x0), ("P", app.P0), ("Q", app.Q), ("R", app.R))}
+            for name, value in (("x", app.x0), P, ("Q", app.Q), ("R", app.R))}
+
+
+def covariance(core_form: str, words: list[int], fmt, n: int) -> np.ndarray:
+    """P (n x n, float64) from the words of region ``P``, or of ``sqrtP`` (S, whose lower
+    triangle is read: P = S S^T) for a core of the square-root form."""
+    A = np.array(from_words(fmt, words)).reshape(n, n)
+    if core_form != "sqrt":
+        return A
+    S = np.tril(A)
+    return S @ S.T
 
 
 async def _step(io: CoreIO, name: str) -> None:
@@ -113,8 +125,9 @@ async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z, on_chip: bool = 
 
 class Prologue:
     """The core's prologue (:attr:`~kfgen.hdl.ukf.programs.UkfPrograms.prologue`) on the
-    golden side: a start of ``iteration`` on an on-chip core runs ``noise`` first when Q or R
-    have been written since ``noise`` last ran (and after reset), as the hardware does
+    golden side: a start of ``iteration`` on an on-chip core (``sig_gen`` on a three-step
+    core of the square-root form) runs ``noise`` first when Q or R have been written since
+    ``noise`` last ran (and after reset), as the hardware does
     (:class:`kfgen.hdl.engine.core.Prologue`)."""
 
     def __init__(self, ukf):
