@@ -33,8 +33,9 @@ def engine_docs() -> dict[str, Doc]:
 
 
 def engine_waivers(params) -> str:
-    """The AXI front end's waivers, and with a format narrower than the bus word the unused
-    high bits of a buffer write."""
+    """The AXI front end's waivers, with a format narrower than the bus word the unused
+    high bits of a buffer write, and in the UKF's square-root form the bits CopySign does not
+    read."""
     from ..bus.axi4 import lint_waivers  # Amaranth, only when generating
     text = lint_waivers(params.name)
     width = params.fmt.width
@@ -43,6 +44,12 @@ def engine_waivers(params) -> str:
                  f"// ignores the high bits (a read returns them as 0).\n"
                  f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
                  f"-match \"Bits of signal are not used: 'back_bus__w_data'?31:{width}?\"\n")
+    if getattr(params, "form", "ldl") == "sqrt":  # the engine's CopySign unit (the square-root form)
+        text += (f"\n// CopySign takes the magnitude bits of its first operand and the sign bit of its second.\n"
+                 f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
+                 f"-match \"Bits of signal are not used: 'engine_copysign_rd__0__data'?{width - 1}?\"\n"
+                 f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
+                 f"-match \"Bits of signal are not used: 'engine_copysign_rd__1__data'?{width - 2}:0?\"\n")
     return text
 
 

@@ -35,10 +35,14 @@ def prologue(progs) -> Prologue | None:
 
 def stream_spec(params, progs) -> StreamSpec:
     """The stream ports of an ``on_chip`` core with ``streams``: z then u in, x then the
-    diagonal of P out."""
+    diagonal of P out (the square-root form's P_diag, the sums of S's rows' squares)."""
     lay, n = progs.layout, params.n
-    x, P = lay["x"], lay["P"]
+    x = lay["x"]
+    if params.form == "sqrt":  # the variances, which the square-root form computes from S
+        var = tuple(lay["P_diag"](i) for i in range(n))
+    else:
+        var = tuple(lay["P"](i, i) for i in range(n))
     ins = tuple(f"z[{i}]" for i in range(params.m)) + tuple(f"u[{i}]" for i in range(params.nu))
-    return StreamSpec(lay["z"].base, ins, tuple(x(i) for i in range(n)) + tuple(P(i, i) for i in range(n)),
+    return StreamSpec(lay["z"].base, ins, tuple(x(i) for i in range(n)) + var,
                       tuple(f"x[{i}]" for i in range(n)) + tuple(f"P[{i},{i}]" for i in range(n)),
                       StreamSpec.field_bits_of(params.fmt.width))

@@ -31,7 +31,7 @@ from math import isqrt
 from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
-from ..linalg.program import Copy, CopySign, Div, Dot, Layout, Program, Sqrt
+from ..linalg.program import Copy, CopySign, Div, Dot, Layout, Max, Program, Sqrt
 from .params import UkfParams
 
 __all__ = ["UkfPrograms", "build_ukf", "simplex_rows", "triangularize", "qr_columns"]
@@ -156,6 +156,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     if sq:  # the square roots of the weights, for the triangularisations' columns
         sw = lay.const("sqrt_w", [_word(fmt, _sqrt(W1)), _word(fmt, _sqrt(Fraction(params.w0)))])
         sw1, sw0 = sw(0, 0), (sw(0, 1) if params.w0 else None)
+        tiny = lay.const("tiny", [1 << fmt.frac_bits])(0, 0)  # the smallest normal: 1 / tiny is finite
         K = qr_columns(params)
     ti = {ij: t for t, ij in enumerate(tri)}
 
@@ -197,15 +198,36 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                 prog.emit(Dot(la[i, j], None, [(fa[i, j], rd(j), False)]))
         return fa, la
 
+    def cholesky(prog, b0, b1):
+        """The sqrt form's Cholesky factor of the block [b0, b1) of P^a (Q or R), column by
+        column: its diagonal into s, its lower part into L; d_j = A_jj - sum_k S_jk^2 is
+        checked as a pivot. No 1 / D_j: in binary16 the reciprocal of a variance such as
+        1e-6 overflows, that of its square root does not."""
+        for j in range(b0, b1):
+            if j == b0:
+                prog.emit(Copy(D(j), A(j, j), "pivot"))
+            else:
+                prog.emit(Dot(D(j), A(j, j), [(L(ti[j, k]), L(ti[j, k]), True) for k in range(b0, j)], "pivot"))
+            prog.emit(Sqrt(s(j), D(j)))
+            prog.emit(Div(rD(j), one, s(j)))
+            for i in range(j + 1, b1):
+                f = A(i, j)
+                if j > b0:
+                    f = F(ti[i, j])
+                    prog.emit(Dot(f, A(i, j), [(L(ti[i, k]), L(ti[j, k]), True) for k in range(b0, j)]))
+                prog.emit(Dot(L(ti[i, j]), None, [(f, rD(j), False)]))
+
     lsg = {}
     for block, (b0, b1) in enumerate(_blocks(params)):
-        if sq and block == 0:
-            continue  # the sqrt form keeps P's factor: nothing to factor
+        if sq:  # P's factor is kept; Q's and R's are Cholesky factors
+            if block:
+                cholesky(nz, b0, b1)
+            continue
         _, la = ldl(sg if block == 0 else nz, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
             lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
         lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
-    for j in range(n if sq else 0, M):  # sqrt(D) (22), folded into sigma's rows
+    for j in range(0 if not sq else M, M):  # sqrt(D) (22), folded into sigma's rows
         prog = sg if j < n else nz
         prog.emit(Sqrt(s(j), D(j)))
         prog.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
@@ -214,11 +236,16 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     def l2(rr, j):  # L2's entry (unit diagonal)
         return one if rr == j else lsg[rr, j]
 
-    def cterm(rr, k):  # L1's entry times c_k (sigma's row k): L2 g, or S's entry times c_k
-        return (P(rr, k), sig_c(0, k), False) if sq and rr < n else (l2(rr, k), g(k), False)
+    def factor(rr, k):  # the sqrt form's Cholesky factor of P^a: S, then Q's and R's
+        if rr < n:
+            return P(rr, k)
+        return s(rr) if rr == k else L(ti[rr, k])
+
+    def cterm(rr, k):  # L1's entry times c_k (sigma's row k): L2 g, or the factor's times c_k
+        return (factor(rr, k), sig_c(0, k), False) if sq else (l2(rr, k), g(k), False)
 
     def dterm(rr, k):  # L1's entry times d_k
-        return (P(rr, k), sig_d(0, k), False) if sq and rr < n else (l2(rr, k), e(k), False)
+        return (factor(rr, k), sig_d(0, k), False) if sq else (l2(rr, k), e(k), False)
 
     for block, (b0, b1) in enumerate(_blocks(params)):
         prog = sg if block == 0 else nz
@@ -226,7 +253,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
             xa = x(rr) if rr < n else None  # x^a = [x; 0; 0] (3)
             base = {rr + 1: xa}  # base[k] = T_rk, the suffix sum from column k
             for k in range(rr, b0 - 1, -1):
-                if k == rr and xa is None:
+                if k == rr and xa is None and not sq:
                     base[k] = g(rr)  # 0 + 1 * g_r needs no multiply-add
                     continue
                 dst = Tr(rr) if k == rr else T(ti[rr, k])
@@ -273,7 +300,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     for i in range(n):  # x^- = chi_0 + delta (10)
         pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
     if sq:
-        return _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, P, x, dx, dlx, dz, dlz,
+        return _sqrt_form(params, lay, sg, nz, pr, u, (one, tiny), sw1, sw0, K, P, x, dx, dlx, dz, dlz,
                           moments, inn)
     covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
                lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
@@ -366,7 +393,7 @@ def qr_columns(params) -> int:
 CHUNK = 8
 
 
-def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
+def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) -> None:
     """Lower-triangular L with L L^T = A A^T for the ``rows x cols`` matrix A at ``a(r, c)``
     (overwritten), by Householder reflections from the right, row by row: L's entry
     ``(i, j)``, j <= i, is written where ``out(i, j)`` says. Needs rows <= cols.
@@ -375,7 +402,11 @@ def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
     v = x - alpha e_0, v_0 = x_0 + sign(x_0) |x| (no cancellation: ``CopySign`` gives the
     sign), and every later row y becomes y - (y.v) / (s v_0) v, s = sign(x_0) |x|, where
     y.v = y.x + y_0 s is accumulated from y.x, which needs no square root. |x|^2 is checked
-    as a pivot: a zero row (a factor of deficient rank) or a NaN sets err_pivot. L's
+    as a pivot in the first ``checked`` rows: a zero row there (a factor of deficient rank:
+    the innovation covariance's) or a NaN sets err_pivot. A later row may be zero (a state
+    the format knows exactly, as binary16 does where the sigma points' spread is below its
+    precision): its reflection is the identity, by dividing by max(s v_0, ``tiny``), the
+    smallest normal word (whose reciprocal is finite), so that y.v = 0 gives 0 and not a NaN. L's
     ``out(i, j)`` returns ``(address, check)``. L's
     diagonal may be negative: L L^T does not see the signs of L's columns, and a column's
     sign flips with every quantity derived from it (the square-root form's gain included).
@@ -404,7 +435,7 @@ def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
     for i in range(rows):
         ss, sg, sgn, v0, rb, sg1 = (w(i, k) for k in range(6))
         cols_i = range(i, cols)
-        dot(ss, [(a(i, j), a(i, j), False) for j in cols_i], i * rows + i, "pivot")
+        dot(ss, [(a(i, j), a(i, j), False) for j in cols_i], i * rows + i, "pivot" if i < checked else None)
         for r in range(i + 1, rows):
             dot(pair(i, r), [(a(r, j), a(i, j), False) for j in cols_i], i * rows + r)
         prog.emit(Sqrt(sg, ss))
@@ -416,6 +447,8 @@ def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
         prog.emit(Dot(v0, a(i, i), [(one, sgn, False)]))
         den = rb  # s v_0 = |x|^2 + s x_0 (beside v_0, not after it), then its reciprocal in place
         prog.emit(Dot(den, ss, [(sgn, a(i, i), False)]))
+        if i >= checked:
+            prog.emit(Max(den, den, tiny))
         prog.emit(Div(rb, one, den))
         prog.emit(CopySign(v0, v0, one))  # |v_0|
         for r in range(i + 1, rows):
@@ -427,7 +460,7 @@ def triangularize(prog, lay, label, rows, cols, a, out, one) -> None:
                 prog.emit(Dot(a(r, j), a(r, j), [(scale(i, r), a(i, j), True)]))
 
 
-def _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, S, x, dx, dlx, dz, dlz, moments, inn):
+def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, K, S, x, dx, dlx, dz, dlz, moments, inn):
     """The square-root form's predict, update and iteration (:func:`build_ukf` has built
     sig_gen, noise and predict's moments): A's columns are the points' deviations from the
     mean, weighted by sqrt(W) (point 0's only when W0 > 0), so that A A^T is the covariance.
@@ -441,6 +474,7 @@ def _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, S, x, dx, dlx, dz, 
       gain K = Kb S_z^-1 itself is not needed)."""
     n, m, N = params.n, params.m, params.N
     fmt = params.fmt
+    one, tiny = consts
 
     def columns(prog, rows, dd, dl, label):
         """A's rows from differences ``dd`` and offsets ``dl``: sqrt(W1) (d_k - delta)
@@ -456,7 +490,7 @@ def _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, S, x, dx, dlx, dz, 
     if not params.on_chip:  # S^- for sig_gen (the on-chip iteration goes straight to update)
         Ap = lay.add("Apred", n, K)
         columns(pr, [(i, lambda k, i=i: Ap(i, k)) for i in range(n)], dx, dlx, "Apred")
-        triangularize(pr, lay, "hpred", n, K, Ap, lambda i, j: (S(i, j), "finite"), one)
+        triangularize(pr, lay, "hpred", n, K, Ap, lambda i, j: (S(i, j), "finite"), one, tiny)
 
     up = Program("update", lay, fmt)
     chih, z = lay["sigma_points_h"], lay["z"]
@@ -473,7 +507,7 @@ def _sqrt_form(params, lay, sg, nz, pr, u, one, sw1, sw0, K, S, x, dx, dlx, dz, 
         if i < m:
             return Sz(i, j), None
         return (Kb(i - m, j), None) if j < m else (S(i - m, j - m), "finite")
-    triangularize(up, lay, "hupd", m + n, K, Au, out, one)
+    triangularize(up, lay, "hupd", m + n, K, Au, out, one, tiny, checked=m)
     rSz = lay.add("rSz", m)
     y = lay.add("ysolve", m)  # S_z^-1 (z - z^), by forward substitution
     t = lay.add("ypart", m)

@@ -94,7 +94,9 @@ def test_cocotb(rtl, sim, tests):
 #: so that neither waits for the other's build.
 CONFIGURATIONS = [
     pytest.param([], id="m20_p1", marks=pytest.mark.xdist_group("cosim_nanosat")),
-    pytest.param(["--pes", "2"], id="m20_p2"),
+    pytest.param(["--pes", "2"], id="m20_p2", marks=pytest.mark.full),
+    pytest.param([*SMALL, "--form", "sqrt", "--pes", "2"], id="small_sqrt_p2"),
+    pytest.param(["--form", "sqrt", "--pes", "2"], id="m20_sqrt_p2", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary16", "--pes", "3"], id="small_binary16_p3", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary64", "--pes", "3"], id="small_binary64_p3", marks=pytest.mark.full),
     pytest.param(["--pes", "5"], id="m20_p5", marks=pytest.mark.full),
