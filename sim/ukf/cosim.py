@@ -337,7 +337,8 @@ async def python_processor(dut):
     r = Run(dut)
     await r.reset()
     wall = time.monotonic()
-    for name, words in initial_words(r.app, r.fmt).items():
+    form = r.bus.gold.params.form
+    for name, words in initial_words(r.app, r.fmt, form).items():
         await r.io.write(name, words)
     for k, (u, z) in enumerate(r.scenario.inputs()):
         before = dict(r.bus.cycles)
@@ -346,7 +347,7 @@ async def python_processor(dut):
         except StepError as exc:
             r.fault(exc.at(k))
         r.record(k, await r.io.read("x"), before)
-    await r.io.read("P")
+    await r.io.read("sqrtP" if form == "sqrt" else "P")
     r.finish(time.monotonic() - wall)
 
 

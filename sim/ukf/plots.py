@@ -23,7 +23,7 @@ import numpy as np
 from kfgen.hdl.ukf.params import UkfParams
 
 from .accuracy import run_golden, run_reference
-from .apps.nanosat import STEPS, Nanosat, attitude_error_deg
+from .apps.nanosat import STEPS, Nanosat, NanosatPrinted, attitude_error_deg
 
 __all__ = ["SEED", "REFERENCE", "GOLDEN", "RTL", "figure12", "nanosat_runs", "rtl_run", "main"]
 
@@ -35,6 +35,7 @@ GOLDEN_ON_CHIP = "binary32 golden model, f and h on chip"
 RTL_ON_CHIP = "generated Verilog, f and h on chip"
 #: The shipped application's spec, for the on-chip core.
 NANOSAT_SPEC = "nanosat:Nanosat"
+NANOSAT_PRINTED_SPEC = "nanosat:NanosatPrinted"
 _STYLES = {REFERENCE: dict(color="tab:blue", lw=2.6, alpha=0.6),
            GOLDEN: dict(color="black", lw=1.0, ls="--"),
            RTL: dict(color="tab:orange", lw=0, marker=".", ms=3),
@@ -81,20 +82,26 @@ def figure12(t, traces: dict, path, title: str = "") -> None:
     plt.close(fig)
 
 
-def nanosat_runs(steps: int = STEPS, seed: int = SEED, on_chip: bool = False) -> dict:
+def _nanosat(form: str):
+    """The application and its spec: the square-root form's figure uses the printed P0 = I."""
+    return (NanosatPrinted(), NANOSAT_PRINTED_SPEC) if form == "sqrt" else (Nanosat(), NANOSAT_SPEC)
+
+
+def nanosat_runs(steps: int = STEPS, seed: int = SEED, on_chip: bool = False, form: str = "ldl") -> dict:
     """The nanosatellite scenario through the reference and the binary32 golden model (of
-    the core with f and h on chip too, with ``on_chip``).
+    the core with f and h on chip too, with ``on_chip``); with ``form="sqrt"`` the
+    square-root form's, from the printed P0 = I.
 
     Returns ``t`` (K,), ``truth`` (K, 7) and ``estimates``: {trace name: (K, 7)}."""
-    app = Nanosat()
+    app, spec = _nanosat(form)
     sc = app.scenario(steps, seed)
-    estimates = {REFERENCE: run_reference(app, sc), GOLDEN: run_golden(app, sc, "binary32")}
+    estimates = {REFERENCE: run_reference(app, sc, form), GOLDEN: run_golden(app, sc, "binary32", form=form)}
     if on_chip:
-        estimates[GOLDEN_ON_CHIP] = run_golden(app, sc, "binary32", on_chip=NANOSAT_SPEC)
+        estimates[GOLDEN_ON_CHIP] = run_golden(app, sc, "binary32", on_chip=spec, form=form)
     return {"t": sc.t, "truth": sc.truth, "estimates": estimates}
 
 
-def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = False) -> np.ndarray:
+def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = False, form: str = "ldl") -> np.ndarray:
     """The nanosatellite on the generated default core (binary32, P = 1; with ``on_chip`` the
     one with f and h compiled into it) in a Verilator co-simulation
     (:mod:`kfgen.sim.ukf.cosim`, every word checked against the golden model); the
@@ -104,15 +111,15 @@ def rtl_run(work: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = Fa
 
     from .run import build_ukf_core, run_cosim
 
-    app = Nanosat()
-    chip = {"app": NANOSAT_SPEC, "on_chip": True} if on_chip else {}
-    rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name="ukf_nanosat_oc" if on_chip else "ukf_nanosat",
-                                        **chip), work)
+    app, spec = _nanosat(form)
+    chip = {"app": spec, "on_chip": True} if on_chip else {}
+    name = ("ukf_nanosat_oc" if on_chip else "ukf_nanosat") + ("_sqrt" if form == "sqrt" else "")
+    rtl, _ = write_core(CORE, UkfParams(**app.core_parameters(), name=name, form=form, **chip), work)
     top = rtl.name
     # an iteration is about 5,000 cycles: a long run gets the optimised C++
     model = build_ukf_core(rtl, top, work / "verilator", cycles=steps * 5000)
     npz = rtl / "cosim.npz"
-    run_cosim(model, rtl, top, "python_processor", "figure12", f"{Nanosat.__module__}:Nanosat", steps,
+    run_cosim(model, rtl, top, "python_processor", "figure12", f"{Nanosat.__module__}:{type(app).__name__}", steps,
               seed=seed, out=npz)
     with np.load(npz) as d:
         return d["estimates"]
@@ -143,13 +150,16 @@ def main(argv=None):
     ap.add_argument("--on-chip", action="store_true",
                     help="the core with f and h on chip (kfgen ukf --on-chip) instead: its golden model's trace, "
                          "and with --rtl its co-simulation's; writes figure12_on_chip.png")
+    ap.add_argument("--form", choices=("ldl", "sqrt"), default="ldl",
+                    help="the core's covariance form; sqrt draws the chapter's printed P0 = I (on which the ldl "
+                         "form faults) and writes figure12_sqrt*.png")
     args = ap.parse_args(argv)
-    runs = nanosat_runs(args.steps, args.seed, args.on_chip)
+    runs = nanosat_runs(args.steps, args.seed, args.on_chip, args.form)
     if args.rtl:
         import time
         t0 = time.monotonic()
         runs["estimates"][RTL_ON_CHIP if args.on_chip else RTL] = rtl_run(Path(args.rtl), args.steps, args.seed,
-                                                                           args.on_chip)
+                                                                           args.on_chip, args.form)
         print(f"co-simulation of {args.steps} iterations: {time.monotonic() - t0:.0f} s (build included)")
     t, truth = runs["t"], runs["truth"]
     traces = {name: attitude_error_deg(x[:, :4], truth[:, :4]) for name, x in runs["estimates"].items()}
@@ -159,10 +169,11 @@ def main(argv=None):
     _summary(t, truth, runs["estimates"])
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    name = "figure12_on_chip.png" if args.on_chip else "figure12.png"
+    name = "figure12" + ("_sqrt" if args.form == "sqrt" else "") + ("_on_chip" if args.on_chip else "") + ".png"
     figure12(t, traces, outdir / name,
              f"Nanosatellite attitude error, {len(t)} iterations at {1 / (t[1] - t[0]):.0f} Hz, seed {args.seed}"
-             + (", f and h on chip" if args.on_chip else ""))
+             + (", f and h on chip" if args.on_chip else "")
+             + (", square-root form, P0 = I" if args.form == "sqrt" else ""))
     print(outdir / name)
 
 

@@ -164,6 +164,8 @@ def main(argv=None) -> int:
     ap.add_argument("--on-chip", action="store_true",
                     help="compile the application's f and h into the core: one start per iteration "
                          "(software writes u and z only)")
+    ap.add_argument("--form", choices=("ldl", "sqrt"), default="ldl",
+                    help="the core's covariance form (kfgen ukf --form; default ldl); sqrt with the Python processor")
     ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
     ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
     args = ap.parse_args(argv)
@@ -172,7 +174,11 @@ def main(argv=None) -> int:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
         app = load_app(args.app)
         on_chip = {"app": args.app, "on_chip": True} if args.on_chip else {}
-        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, name="ukf_app", **on_chip)
+        params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, form=args.form,
+                           name="ukf_app", **on_chip)
+        if args.processor == "c" and params.form != "ldl":
+            raise ValueError("--processor c: the C driver loads P0 into region P (the ldl form); "
+                             "use --processor python with --form sqrt")
         if args.processor == "c" and params.format not in C_FORMATS:
             raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "
                              f"not {params.format} (use --processor python)")
@@ -198,7 +204,7 @@ def main(argv=None) -> int:
         cycles, est, wall = d["cycles"], d["estimates"], float(d["wall_s"])
         columns = [str(c) for c in d["cycles_columns"]]
         total = int(d["sim_cycles"])
-    ref = run_reference(app, scenario)
+    ref = run_reference(app, scenario, params.form)
     mean = cycles.mean(axis=0)
     print(f"{args.steps} iterations of {args.app} on {params.name} (P = {params.pes}, {params.format}), "
           f"{args.processor} processor, {args.beats} transfers, {args.wait}: every word equal to the golden model's")

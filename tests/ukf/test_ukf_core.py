@@ -67,6 +67,7 @@ def test_no_irq(tmp_path, how):
     (["--w0", "1"], "--w0: "),
     (["--format", "binary128"], "--format: "),
     (["--address-width", "5"], "--address-width: "),
+    (["--form", "qr"], "--form: "),
 ])
 def test_bad_values_exit_2(tmp_path, args, says):
     proc = kfgen_in_process("ukf", *args, "-o", tmp_path / "x")

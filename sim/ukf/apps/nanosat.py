@@ -50,7 +50,7 @@ import numpy as np
 from ..app import Scenario, UkfApplication
 
 __all__ = ["G", "B_A", "B_M", "RATE", "STEPS", "rotation", "euler_rotation", "quat_multiply",
-           "euler_quaternion", "attitude_error_deg", "Nanosat"]
+           "euler_quaternion", "attitude_error_deg", "Nanosat", "NanosatPrinted"]
 
 G = 8.94  #: gravity at 300 km, m/s^2
 B_A = np.array([0.0, 0.0, 1.0])
@@ -184,3 +184,13 @@ class Nanosat(UkfApplication):
             truth.append(np.r_[q[k + 1], bias])
             z.append(self.h(truth[-1], rng.normal(0.0, noise)))  # (34), (35)
         return Scenario(t[1:], np.array(truth), np.array(u), np.array(z))
+
+
+class NanosatPrinted(Nanosat):
+    """:class:`Nanosat` with eq. (42)'s printed P0 = I: the setup on which the ldl form's
+    binary32 core raises err_pivot and the square-root form's (``--form sqrt``) does not
+    (``python -m kfgen.sim.ukf.montecarlo``)."""
+
+    def __init__(self, rate: float = RATE, sigma_a: float = 1e-3 * G, sigma_m: float = 1e-3):
+        super().__init__(rate, sigma_a, sigma_m)
+        self.P0 = np.eye(7)
