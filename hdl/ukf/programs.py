@@ -387,75 +387,86 @@ def qr_columns(params) -> int:
     return params.N - 1 + (1 if params.w0 else 0)
 
 
-#: Longest sum a triangularisation accumulates in one chain (:func:`triangularize`): longer
-#: ones are cut into chunks summed side by side, a shorter critical path for one more
-#: multiply-add per chunk.
+#: Terms a critical sum of a triangularisation accumulates in one chain (the next row's
+#: |x|^2 and y.x): longer ones are cut into chunks summed side by side and added in a tree,
+#: a shorter critical path for one more multiply-add per chunk. The other sums have a
+#: reflection's time to spare and stay one chain.
 CHUNK = 8
 
 
 def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) -> None:
-    """Lower-triangular L with L L^T = A A^T for the ``rows x cols`` matrix A at ``a(r, c)``
-    (overwritten), by Householder reflections from the right, row by row: L's entry
-    ``(i, j)``, j <= i, is written where ``out(i, j)`` says. Needs rows <= cols.
+    """Lower-triangular L with L L^T = A A^T and a positive diagonal (the Cholesky factor)
+    for the ``rows x cols`` matrix A at ``a(r, c)`` (overwritten), by Householder reflections
+    from the right, row by row; L's entry ``(i, j)``, j <= i, is written where ``out(i, j)``
+    (``(address, check)``) says. Needs rows <= cols.
 
-    Row i's reflection takes x = A[i, i:] to (alpha, 0, ..., 0), alpha = -sign(x_0) |x|:
-    v = x - alpha e_0, v_0 = x_0 + sign(x_0) |x| (no cancellation: ``CopySign`` gives the
-    sign), and every later row y becomes y - (y.v) / (s v_0) v, s = sign(x_0) |x|, where
-    y.v = y.x + y_0 s is accumulated from y.x, which needs no square root. |x|^2 is checked
-    as a pivot in the first ``checked`` rows: a zero row there (a factor of deficient rank:
-    the innovation covariance's) or a NaN sets err_pivot. A later row may be zero (a state
-    the format knows exactly, as binary16 does where the sigma points' spread is below its
-    precision): its reflection is the identity, by dividing by max(s v_0, ``tiny``), the
-    smallest normal word (whose reciprocal is finite), so that y.v = 0 gives 0 and not a NaN. L's
-    ``out(i, j)`` returns ``(address, check)``. L's
-    diagonal may be negative: L L^T does not see the signs of L's columns, and a column's
-    sign flips with every quantity derived from it (the square-root form's gain included).
+    Row i's reflection takes x = A[i, i:] to (alpha, 0, ..., 0), alpha = -s, s = sign(x_0) |x|:
+    v = x + s e_0, v_0 = x_0 + s (no cancellation: ``CopySign`` gives the sign), and every
+    later row y becomes y - (y.v) / (s v_0) v, where s v_0 = |x|^2 + |x_0| |x| and
+    y.v = y.x + y_0 s is accumulated from y.x, which needs no square root. Column i is then
+    multiplied by -sign(x_0), exactly (a sign), so that L's diagonal is |x|.
 
-    Cost, for rows R and columns C: sum over i of (C - i)(1 + 2(R - 1 - i)) multiply-adds
-    plus 4 a row and 2 a pair of rows for the scalars, R square roots and R - 1 divisions."""
+    |x|^2 is checked as a pivot in the first ``checked`` rows: a zero row there (a factor of
+    deficient rank: the innovation covariance's) or a NaN sets err_pivot. A later row may be
+    zero (a state the format knows exactly, as binary16 does where the sigma points' spread
+    is below its precision): its reflection is the identity, by dividing by
+    max(s v_0, ``tiny``), the smallest normal word (whose reciprocal is finite), so that
+    y.v = 0 gives 0 and not a NaN.
+
+    Cost, for rows R and columns C: sum over i of (C - i)(1 + 2(R - 1 - i)) multiply-adds,
+    plus the critical sums' chunks, 3 a row and 3 a pair of rows for the scalars, R square
+    roots and R - 1 divisions."""
     if rows > cols:
         raise ValueError(f"{label}: {rows} rows need at least as many columns, not {cols}")
-    w = lay.add(f"{label}_row", rows, 6)  # |x|^2, |x|, s, v_0 (then |v_0|), 1 / (s v_0), sign(x_0)
+    w = lay.add(f"{label}_row", rows, 7)  # |x|^2, |x|, s, |x_0|, |v_0|, 1 / (s v_0), sign(x_0)
     pair = lay.add(f"{label}_pair", rows, rows)  # y.x then y.v, by (reflection, row)
     scale = lay.add(f"{label}_scale", rows, rows)  # (y.v) / (s v_0)
     chunks = -(-cols // CHUNK)
-    part = lay.add(f"{label}_part", rows * rows, max(1, chunks - 1))  # a long sum's partial sums
+    part = lay.add(f"{label}_part", rows + rows * rows, 2 * chunks)  # the sums' partial sums
 
-    def dot(dst, terms, slot, check=None):
-        """``dst = sum(terms)`` in chunks of at most CHUNK terms summed side by side, the
-        partial sums added at the end of the first chunk's (a shorter chain)."""
+    def tree(dst, terms, slot, check=None):
+        """``dst = sum(terms)``: chunks of at most CHUNK terms side by side, then a tree."""
+        if len(terms) <= CHUNK:
+            prog.emit(Dot(dst, None, terms, check))
+            return
         cut = -(-len(terms) // CHUNK)
         size = -(-len(terms) // cut)
-        groups = [terms[k:k + size] for k in range(0, len(terms), size)]
-        for k, grp in enumerate(groups[1:]):
-            prog.emit(Dot(part(slot, k), None, grp))
-        prog.emit(Dot(dst, None, groups[0] + [(one, part(slot, k), False) for k in range(len(groups) - 1)],
-                      check))
+        vals, k = [], 0
+        for at in range(0, len(terms), size):
+            prog.emit(Dot(part(slot, k), None, terms[at:at + size]))
+            vals, k = vals + [part(slot, k)], k + 1
+        while len(vals) > 2:
+            nxt = []
+            for q in range(0, len(vals) - 1, 2):
+                prog.emit(Dot(part(slot, k), vals[q], [(one, vals[q + 1], False)]))
+                nxt, k = nxt + [part(slot, k)], k + 1
+            vals = nxt + vals[len(vals) - len(vals) % 2:]
+        prog.emit(Dot(dst, vals[0], [(one, vals[1], False)], check))
 
     for i in range(rows):
-        ss, sg, sgn, v0, rb, sg1 = (w(i, k) for k in range(6))
+        ss, sg, sgn, ax0, av0, rb, sg1 = (w(i, k) for k in range(7))
         cols_i = range(i, cols)
-        dot(ss, [(a(i, j), a(i, j), False) for j in cols_i], i * rows + i, "pivot" if i < checked else None)
+        tree(ss, [(a(i, j), a(i, j), False) for j in cols_i], i, "pivot" if i < checked else None)
         for r in range(i + 1, rows):
-            dot(pair(i, r), [(a(r, j), a(i, j), False) for j in cols_i], i * rows + r)
+            terms = [(a(r, j), a(i, j), False) for j in cols_i]
+            tree(pair(i, r), terms, rows + i * rows + r)
         prog.emit(Sqrt(sg, ss))
-        prog.emit(CopySign(sgn, sg, a(i, i)))
         prog.emit(Copy(out(i, i)[0], sg, out(i, i)[1]))  # -sign(x_0) alpha = |x|
         if i + 1 == rows:
             break
+        prog.emit(CopySign(ax0, a(i, i), one))
+        prog.emit(CopySign(sgn, sg, a(i, i)))
         prog.emit(CopySign(sg1, one, a(i, i)))
-        prog.emit(Dot(v0, a(i, i), [(one, sgn, False)]))
-        den = rb  # s v_0 = |x|^2 + s x_0 (beside v_0, not after it), then its reciprocal in place
-        prog.emit(Dot(den, ss, [(sgn, a(i, i), False)]))
+        prog.emit(Dot(rb, ss, [(ax0, sg, False)]))  # s v_0, then its reciprocal in place
         if i >= checked:
-            prog.emit(Max(den, den, tiny))
-        prog.emit(Div(rb, one, den))
-        prog.emit(CopySign(v0, v0, one))  # |v_0|
+            prog.emit(Max(rb, rb, tiny))
+        prog.emit(Div(rb, one, rb))
+        prog.emit(Dot(av0, ax0, [(one, sg, False)]))  # |v_0| = |x_0| + |x|
         for r in range(i + 1, rows):
             prog.emit(Dot(pair(i, r), pair(i, r), [(a(r, i), sgn, False)]))  # y.v
             prog.emit(Dot(scale(i, r), None, [(pair(i, r), rb, False)]))
-            # -sign(x_0) (y_0 - scale v_0), exactly: the column's sign follows the diagonal's
-            prog.emit(Dot(out(r, i)[0], None, [(sg1, a(r, i), True), (scale(i, r), v0, False)], out(r, i)[1]))
+            # -sign(x_0) (y_0 - scale v_0) = -sign(x_0) y_0 + scale |v_0|, exactly signed
+            prog.emit(Dot(out(r, i)[0], None, [(sg1, a(r, i), True), (scale(i, r), av0, False)], out(r, i)[1]))
             for j in range(i + 1, cols):
                 prog.emit(Dot(a(r, j), a(r, j), [(scale(i, r), a(i, j), True)]))
 
