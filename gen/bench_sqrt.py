@@ -1,0 +1,157 @@
+"""The UKF's square-root form (``kfgen ukf --form sqrt``) beside the chapter's ldl form:
+``python -m kfgen.gen.bench_sqrt`` (part 6 of ``python -m kfgen.gen.bench ukf``).
+
+1. Cycles per iteration at P = 1, 2 and 10 (the manifests' schedules), for the three-step
+   core (sig_gen + predict + update) and the on-chip nanosatellite core, with the FMAs, the
+   chain bound and the ratio to the ldl form.
+2. Xilinx 7 resources (Yosys ``synth_xilinx``) and ECP5-85 Fmax (nextpnr, median of the
+   seeds) of the on-chip nanosatellite core in both forms at P = 1 and 2.
+3. The nanosatellite with the printed P0 = I over 100 seeds x 1000 iterations in binary32,
+   binary16 and bfloat16, both forms (:mod:`kfgen.sim.ukf.montecarlo`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from .bench_ukf import ON_CHIP_APP, _timed
+from kfgen.sim.toolchain import ToolMissing
+
+from .synth import ecp5_fmax, md_table, write_core, xilinx_resources
+
+__all__ = ["cycle_rows", "cycles_table", "main"]
+
+FORMS = ("ldl", "sqrt")
+
+
+def cycle_rows(pes=(1, 2, 10)) -> list[dict]:
+    """Per P and form: the three-step core's step cycles and the on-chip core's iteration."""
+    from kfgen.hdl.linalg.schedule import chain_bound
+    from kfgen.hdl.ukf.params import UkfParams
+    from kfgen.hdl.ukf.steps import machine, programs, schedules
+    from kfgen.sim.ukf.app import load_app
+
+    sizes = load_app(ON_CHIP_APP).core_parameters()
+    rows = []
+    for p in pes:
+        for form in FORMS:
+            three = UkfParams(**sizes, pes=p, form=form)
+            chip = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True)
+            s3, sc = schedules(three), schedules(chip)
+            progs, mc = programs(chip), machine(chip)
+            it = progs.iteration
+            rows.append({"pes": p, "form": form,
+                         "steps": {k: s.cycles for k, s in s3.items()},
+                         "iteration": sc["iteration"].cycles, "noise": sc["noise"].cycles,
+                         "fmas": it.fma_count, "chain": chain_bound(it, mc)})
+    return rows
+
+
+def cycles_table(rows: list[dict]) -> str:
+    ldl = {(r["pes"]): r for r in rows if r["form"] == "ldl"}
+    head = ["P", "form", "sig_gen", "predict", "update", "three steps", "/ ldl", "on chip: iteration", "/ ldl",
+            "FMAs", "chain bound", "/ max(FMAs / P, chain)", "noise (after a Q or R write)"]
+    out = []
+    for r in rows:
+        st = r["steps"]
+        three = st["sig_gen"] + st["predict"] + st["update"]
+        base = ldl[r["pes"]]
+        b3 = sum(base["steps"][k] for k in ("sig_gen", "predict", "update"))
+        out.append([str(r["pes"]), r["form"], *(f"{st[k]:,}" for k in ("sig_gen", "predict", "update")),
+                    f"{three:,}", f"{three / b3:.2f}", f"{r['iteration']:,}", f"{r['iteration'] / base['iteration']:.2f}",
+                    f"{r['fmas']:,}", f"{r['chain']:,}",
+                    f"{r['iteration'] / max(r['fmas'] / r['pes'], r['chain']):.2f}",
+                    f"{r['noise']:,}" if "noise" in st or r["form"] == "sqrt" else f"{r['noise']:,} (on chip)"])
+    return md_table(head, out)
+
+
+def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True) -> list[dict]:
+    from kfgen.hdl.ukf.descriptor import CORE
+    from kfgen.hdl.ukf.params import UkfParams
+    from kfgen.sim.ukf.app import load_app
+
+    sizes = load_app(ON_CHIP_APP).core_parameters()
+    rows = []
+    for p in pes:
+        for form in FORMS:
+            params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True,
+                               name=f"ukf_oc_{form}_p{p}")
+            work, manifest = write_core(CORE, params, out)
+            rows.append({"pes": p, "form": form, "top": params.name, "work": work,
+                         "iteration": manifest["cycles"]["iteration"]})
+    tasks = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in rows[::-1]]
+    if fmax:
+        tasks += [(r, "ecp5", ecp5_fmax, r["work"], r["top"], freq, tuple(seeds)) for r in rows[::-1]]
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        for f in [pool.submit(_timed, *t) for t in tasks]:
+            f.result()
+    return rows
+
+
+def synth_table(rows: list[dict]) -> str:
+    head = ["P", "form", "iteration (cycles)", "Xilinx 7 LUT (as RAM)", "FF", "DSP48E1", "BRAM (36 Kb)",
+            "ECP5 Fmax (MHz), median", "ECP5 LUT4", "iteration at Fmax (us)"]
+    out = []
+    for r in rows:
+        f = r.get("fmax_mhz")
+        lut = f"{r['lut']:,} ({r['lut_memory']:,})" if "lut" in r else r.get("xilinx_error", "-")
+        out.append([str(r["pes"]), r["form"], f"{r['iteration']:,}", lut, f"{r.get('ff', 0):,}",
+                    str(r.get("dsp", "-")), f"{r['bram36']:g}" if "bram36" in r else "-",
+                    f"{f:.1f}" if f else r.get("ecp5_error", "-"),
+                    f"{r.get('utilization', {}).get('TRELLIS_COMB', 0):,}",
+                    f"{r['iteration'] / f:.1f}" if f else "-"])
+    return md_table(head, out)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_sqrt", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--synth-pes", default="1,2", help="P of the synthesised cores (default 1,2)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="nextpnr seeds (default 1 2 3)")
+    ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target, MHz (default 100)")
+    ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
+    ap.add_argument("--no-synth", action="store_true", help="skip part 2 (synthesis, place and route)")
+    ap.add_argument("--no-fmax", action="store_true", help="skip place and route")
+    ap.add_argument("--no-montecarlo", action="store_true", help="skip part 3 (the 100-seed runs)")
+    ap.add_argument("--mc-seeds", type=int, default=100, help="Monte Carlo seeds (default 100)")
+    ap.add_argument("-o", "--out", default="build/bench_sqrt", help="work directory (default build/bench_sqrt)")
+    a = ap.parse_args(argv)
+    try:
+        synth_pes = sorted({int(x) for x in a.synth_pes.split(",")})
+    except ValueError:
+        print(f"bench_sqrt: --synth-pes takes P values separated by commas, not {a.synth_pes!r}", file=sys.stderr)
+        return 2
+    out = Path(a.out).resolve()
+    t0 = time.monotonic()
+    report = ("The square-root form (kfgen ukf --form sqrt) beside the ldl form: cycles per iteration, "
+              "nanosatellite sizes (n = 7, m = 6, nw = 7, nv = 6):\n\n" + cycles_table(cycle_rows()) + "\n")
+    status = 0
+    if not a.no_synth:
+        try:
+            rows = synth_rows(synth_pes, out, a.seeds, a.freq, a.jobs, not a.no_fmax)
+        except ToolMissing as exc:
+            print(f"bench_sqrt: {exc}", file=sys.stderr)
+            return 1
+        report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
+                   f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
+        status |= any(r.get(k) for r in rows for k in ("xilinx_error", "ecp5_error"))
+    if not a.no_montecarlo:
+        from kfgen.sim.ukf import montecarlo
+        import io
+        from contextlib import redirect_stdout
+        buf = io.StringIO()
+        with redirect_stdout(buf):
+            status |= montecarlo.main(["--seeds", str(a.mc_seeds), "--jobs", str(a.jobs)])
+        report += "\n" + buf.getvalue()
+    report += f"\n(bench_sqrt: {time.monotonic() - t0:.0f} s)\n"
+    print(report, end="")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_sqrt.md").write_text(report)
+    return int(bool(status))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
