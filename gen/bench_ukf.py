@@ -294,6 +294,8 @@ def _parser():
     ap.add_argument("--tracker-pes", type=_pe_list, default=[1, 2],
                     help="P of the cores with the tracker's f and h on chip, its atan2 unit (part 5; default 1,2)")
     ap.add_argument("--no-on-chip", action="store_true", help="skip part 5 (the on-chip cores)")
+    ap.add_argument("--no-sqrt", action="store_true",
+                    help="skip part 6, the square-root form (python -m kfgen.gen.bench_sqrt)")
     ap.add_argument("--no-sim", action="store_true", help="skip the simulations (no measured cycles, no system)")
     ap.add_argument("--no-synth", action="store_true", help="skip synthesis and place and route")
     ap.add_argument("--no-gen", action="store_true",
@@ -476,6 +478,11 @@ def main(argv=None) -> int:
         report += "\n" + gen_report
     print(report, end="")
     (out / "bench_ukf.md").write_text(report)
+    if not args.no_sqrt:  # part 6: the square-root form beside the ldl form
+        from .bench_sqrt import main as bench_sqrt
+        print("\n### Part 6: the square-root form\n", flush=True)
+        gen_ok &= bench_sqrt(["--jobs", str(args.jobs), "-o", str(out / "sqrt"), *(["--no-synth"] if args.no_synth else []),
+                              *(["--no-fmax"] if args.no_fmax else [])]) == 0
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)
                                         + "\n")
