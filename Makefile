@@ -74,6 +74,7 @@ plots: $(DEV)
 	$(PY) -m kfgen.sim.castella.plots -o sim/castella/figures --verilator build/mc/verilator_mc.npz
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --rtl build/ukf_cosim
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --on-chip --rtl build/ukf_cosim_on_chip
+	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --form sqrt --on-chip --rtl build/ukf_cosim_sqrt
 	$(PY) -m kfgen.sim.imm.plots -o sim/imm/figures --rtl build/imm_scenario
 
 clean:

@@ -414,11 +414,12 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
     y.v = 0 gives 0 and not a NaN.
 
     Cost, for rows R and columns C: sum over i of (C - i)(1 + 2(R - 1 - i)) multiply-adds,
-    plus the critical sums' chunks, 3 a row and 3 a pair of rows for the scalars, R square
-    roots and R - 1 divisions."""
+    plus the sums' chunks, 3 a row and 3 a pair of rows for the scalars, R square roots and
+    2 (R - 1) divisions (the next row's scale is a quotient: one step, not two, on the
+    critical path)."""
     if rows > cols:
         raise ValueError(f"{label}: {rows} rows need at least as many columns, not {cols}")
-    w = lay.add(f"{label}_row", rows, 7)  # |x|^2, |x|, s, |x_0|, |v_0|, 1 / (s v_0), sign(x_0)
+    w = lay.add(f"{label}_row", rows, 8)  # |x|^2, |x|, s, |x_0|, |v_0|, 1 / (s v_0), sign(x_0), s v_0
     pair = lay.add(f"{label}_pair", rows, rows)  # y.x then y.v, by (reflection, row)
     scale = lay.add(f"{label}_scale", rows, rows)  # (y.v) / (s v_0)
     chunks = -(-cols // CHUNK)
@@ -444,7 +445,7 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
         prog.emit(Dot(dst, vals[0], [(one, vals[1], False)], check))
 
     for i in range(rows):
-        ss, sg, sgn, ax0, av0, rb, sg1 = (w(i, k) for k in range(7))
+        ss, sg, sgn, ax0, av0, rb, sg1, den = (w(i, k) for k in range(8))
         cols_i = range(i, cols)
         tree(ss, [(a(i, j), a(i, j), False) for j in cols_i], i, "pivot" if i < checked else None)
         for r in range(i + 1, rows):
@@ -457,14 +458,17 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
         prog.emit(CopySign(ax0, a(i, i), one))
         prog.emit(CopySign(sgn, sg, a(i, i)))
         prog.emit(CopySign(sg1, one, a(i, i)))
-        prog.emit(Dot(rb, ss, [(ax0, sg, False)]))  # s v_0, then its reciprocal in place
+        prog.emit(Dot(den, ss, [(ax0, sg, False)]))  # s v_0 = |x|^2 + |x_0| |x|
         if i >= checked:
-            prog.emit(Max(rb, rb, tiny))
-        prog.emit(Div(rb, one, rb))
+            prog.emit(Max(den, den, tiny))
+        prog.emit(Div(rb, one, den))
         prog.emit(Dot(av0, ax0, [(one, sg, False)]))  # |v_0| = |x_0| + |x|
         for r in range(i + 1, rows):
             prog.emit(Dot(pair(i, r), pair(i, r), [(a(r, i), sgn, False)]))  # y.v
-            prog.emit(Dot(scale(i, r), None, [(pair(i, r), rb, False)]))
+            if r == i + 1:  # the next row's, on the critical path: one division, not two steps
+                prog.emit(Div(scale(i, r), pair(i, r), den))
+            else:
+                prog.emit(Dot(scale(i, r), None, [(pair(i, r), rb, False)]))
             # -sign(x_0) (y_0 - scale v_0) = -sign(x_0) y_0 + scale |v_0|, exactly signed
             prog.emit(Dot(out(r, i)[0], None, [(sg1, a(r, i), True), (scale(i, r), av0, False)], out(r, i)[1]))
             for j in range(i + 1, cols):

@@ -415,6 +415,23 @@ def test_figure12_on_chip(tmp_path, capsys):
     assert rtl == gold and float(rtl[2]) < 0.1, (rtl, gold)
 
 
+@pytest.mark.full
+@pytest.mark.verilator
+def test_figure12_sqrt(tmp_path, capsys):
+    """Figure 12 of the square-root form from the printed P0 = I (make plots): the Verilog's
+    estimates its golden model's, the attitude below 0.1 degree after the first second."""
+    from kfgen.sim.ukf import plots
+    plots.main(["-o", str(tmp_path / "fig"), "--form", "sqrt", "--on-chip", "--rtl", str(tmp_path / "rtl")])
+    assert (tmp_path / "fig" / "figure12_sqrt_on_chip.png").stat().st_size > 10_000
+    out = capsys.readouterr().out.splitlines()
+
+    def row(name):
+        (line,) = [ln for ln in out if ln.startswith(name + " ")]
+        return line[len(name):].split()
+    rtl, gold = row(plots.RTL_ON_CHIP), row(plots.GOLDEN_ON_CHIP)
+    assert rtl == gold and float(rtl[2]) < 0.1, (rtl, gold)
+
+
 def test_config_file_names_the_application(tmp_path):
     """``app`` in a --config file does what --app does (the sizes, and the models on chip)."""
     cfg = tmp_path / "c.toml"

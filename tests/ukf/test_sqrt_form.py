@@ -100,6 +100,26 @@ def test_printed_p0_binary32():
     assert sq["faulted"] == 0 and sq["converged"] == 6 and sq["worst"] < 0.1, sq
 
 
+def test_binary32_is_closer_to_float64_than_ldl():
+    """The default nanosatellite (P0 = 0.01 I, where both forms run) on chip in binary32, 100
+    iterations: the square-root form's estimate stays within 1e-5 of the float64 reference in
+    the quaternion and 2e-4 rad/s in the bias, ten times closer than the ldl form's."""
+    app = Nanosat()
+    sc = checked_scenario(app, 100, 2)
+    ref = run_reference(app, sc)
+    err = {form: np.abs(run_golden(app, sc, "binary32", on_chip=NANOSAT, form=form) - ref) for form in ("ldl", "sqrt")}
+    assert err["sqrt"][:, :4].max() < 1e-5 and err["sqrt"][:, 4:].max() < 2e-4, err["sqrt"].max(axis=0)
+    assert err["ldl"][:, 4:].max() > 10 * err["sqrt"][:, 4:].max()
+
+
+def test_cycles_table_is_the_bench():
+    """docs/ukf.md's cycles of the two forms are what ``python -m kfgen.gen.bench_sqrt``
+    prints."""
+    from kfgen.gen.bench_sqrt import cycle_rows, cycles_table
+    from helpers import ROOT
+    assert cycles_table(cycle_rows()) in (ROOT / "docs" / "ukf.md").read_text()
+
+
 def test_triangularize_is_the_cholesky_factor():
     """The Householder program on a random 4 x 9 matrix (binary64): L is numpy's Cholesky
     factor of A A^T (positive diagonal); a zero row after the checked ones gives a zero
