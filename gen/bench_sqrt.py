@@ -71,7 +71,7 @@ def cycles_table(rows: list[dict]) -> str:
     return md_table(head, out)
 
 
-def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True) -> list[dict]:
+def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True, forms=FORMS) -> list[dict]:
     from kfgen.hdl.ukf.descriptor import CORE
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.sim.ukf.app import load_app
@@ -79,7 +79,7 @@ def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True)
     sizes = load_app(ON_CHIP_APP).core_parameters()
     rows = []
     for p in pes:
-        for form in FORMS:
+        for form in forms:
             params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True,
                                name=f"ukf_oc_{form}_p{p}")
             work, manifest = write_core(CORE, params, out)
@@ -115,6 +115,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="nextpnr seeds (default 1 2 3)")
     ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target, MHz (default 100)")
     ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
+    ap.add_argument("--synth-forms", default="ldl,sqrt",
+                    help="forms synthesised (default ldl,sqrt; the ldl core is part 5's of bench_ukf, unchanged)")
     ap.add_argument("--no-synth", action="store_true", help="skip part 2 (synthesis, place and route)")
     ap.add_argument("--no-fmax", action="store_true", help="skip place and route")
     ap.add_argument("--no-montecarlo", action="store_true", help="skip part 3 (the 100-seed runs)")
@@ -133,7 +135,7 @@ def main(argv=None) -> int:
     status = 0
     if not a.no_synth:
         try:
-            rows = synth_rows(synth_pes, out, a.seeds, a.freq, a.jobs, not a.no_fmax)
+            rows = synth_rows(synth_pes, out, a.seeds, a.freq, a.jobs, not a.no_fmax, a.synth_forms.split(","))
         except ToolMissing as exc:
             print(f"bench_sqrt: {exc}", file=sys.stderr)
             return 1

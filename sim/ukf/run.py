@@ -165,7 +165,7 @@ def main(argv=None) -> int:
                     help="compile the application's f and h into the core: one start per iteration "
                          "(software writes u and z only)")
     ap.add_argument("--form", choices=("ldl", "sqrt"), default="ldl",
-                    help="the core's covariance form (kfgen ukf --form; default ldl); sqrt with the Python processor")
+                    help="the core's covariance form (kfgen ukf --form; default ldl)")
     ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
     ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
     args = ap.parse_args(argv)
@@ -176,9 +176,6 @@ def main(argv=None) -> int:
         on_chip = {"app": args.app, "on_chip": True} if args.on_chip else {}
         params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, form=args.form,
                            name="ukf_app", **on_chip)
-        if args.processor == "c" and params.form != "ldl":
-            raise ValueError("--processor c: the C driver loads P0 into region P (the ldl form); "
-                             "use --processor python with --form sqrt")
         if args.processor == "c" and params.format not in C_FORMATS:
             raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "
                              f"not {params.format} (use --processor python)")

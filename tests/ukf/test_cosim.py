@@ -118,14 +118,16 @@ def test_tracker(build_root, processor, beats, wait):
         assert np.max(np.abs(d["estimates"] - ref)) < 1e-9 * max(1.0, np.max(np.abs(ref)))
 
 
-@pytest.mark.parametrize("fmt", ["binary32", "binary64", "binary16"])
-def test_c_driver_builds(tmp_path, fmt):
+@pytest.mark.parametrize("fmt,form", [("binary32", "ldl"), ("binary64", "ldl"), ("binary16", "ldl"), ("binary32", "sqrt")])
+def test_c_driver_builds(tmp_path, fmt, form):
     """The C driver compiles as C99 with every warning an error, both for a bare-metal
-    processor (volatile MMIO) and with the hooks; a format C cannot convert gets none."""
+    processor (volatile MMIO) and with the hooks (the square-root form's with its Cholesky
+    factor of P0); a format C cannot convert gets none."""
     import subprocess
 
     kfgen("ukf", "--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
-          "--format", fmt, "-o", tmp_path)
+          "--format", fmt, "--form", form, "-o", tmp_path)
+    assert ("UKF__SQRTP_OFFSET" in (tmp_path / "ukf.h").read_text()) == (form == "sqrt")
     if fmt == "binary16":
         assert not list(tmp_path.glob("*_driver.*"))
         return
