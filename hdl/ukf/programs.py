@@ -20,6 +20,12 @@ Unscented Kalman Filter"). Structure known at generation is used instead of comp
   D, back substitution, row by row of K.
 
 Accumulation orders put the term that becomes ready last at the end.
+
+The square-root form (``form="sqrt"``, :class:`~.params.UkfParams`) keeps S, P = S S^T, in
+region ``sqrtP``: sig_gen reads S instead of factoring P (and Q's and R's Cholesky factors
+come from the ``noise`` step, once per write), and predict and update triangularise the
+points' weighted deviations by Householder reflections (:func:`triangularize`), update the
+stacked [A_z; A_x] whose factor holds S_z, P_xz S_z^-T and S^+ at once (:func:`_sqrt_form`).
 """
 
 from __future__ import annotations
@@ -124,7 +130,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     F = lay.add("F", len(tri))
     L = lay.add("L", len(tri))
     D = lay.add("D", M)
-    rD = lay.add("rD", M)  # 1 / D_j: one division a pivot, the column's L by multiplies
+    rD = lay.add("rD", M)  # 1 / D_j (sqrt form: 1 / s_j): one division a pivot, the column's L by multiplies
     s = lay.add("s", M)
     g = lay.add("g", M)
     e = lay.add("e", M)
@@ -157,7 +163,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
         sw = lay.const("sqrt_w", [_word(fmt, _sqrt(W1)), _word(fmt, _sqrt(Fraction(params.w0)))])
         sw1, sw0 = sw(0, 0), (sw(0, 1) if params.w0 else None)
         tiny = lay.const("tiny", [1 << fmt.frac_bits])(0, 0)  # the smallest normal: 1 / tiny is finite
-        K = qr_columns(params)
+        ncols = qr_columns(params)
     ti = {ij: t for t, ij in enumerate(tri)}
 
     def A(i, j):  # P^a's lower triangle, block by block (4)
@@ -227,7 +233,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
             lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
             lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
         lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
-    for j in range(0 if not sq else M, M):  # sqrt(D) (22), folded into sigma's rows
+    for j in range(M if not sq else 0):  # sqrt(D) (22), folded into sigma's rows
         prog = sg if j < n else nz
         prog.emit(Sqrt(s(j), D(j)))
         prog.emit(Dot(g(j), None, [(s(j), sig_c(0, j), False)]))
@@ -300,7 +306,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     for i in range(n):  # x^- = chi_0 + delta (10)
         pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
     if sq:
-        return _sqrt_form(params, lay, sg, nz, pr, u, (one, tiny), sw1, sw0, K, P, x, dx, dlx, dz, dlz,
+        return _sqrt_form(params, lay, sg, nz, pr, u, (one, tiny), sw1, sw0, ncols, P, x, dx, dlx, dz, dlz,
                           moments, inn)
     covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
                lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
@@ -475,13 +481,13 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
                 prog.emit(Dot(a(r, j), a(r, j), [(scale(i, r), a(i, j), True)]))
 
 
-def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, K, S, x, dx, dlx, dz, dlz, moments, inn):
+def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, ncols, S, x, dx, dlx, dz, dlz, moments, inn):
     """The square-root form's predict, update and iteration (:func:`build_ukf` has built
     sig_gen, noise and predict's moments): A's columns are the points' deviations from the
     mean, weighted by sqrt(W) (point 0's only when W0 > 0), so that A A^T is the covariance.
 
     * predict: S^- = the triangular factor of A_x (three-step core only);
-    * update: the stacked [A_z; A_x] ((m + n) x K) triangularised gives
+    * update: the stacked [A_z; A_x] ((m + n) x (N - 1), or x N when W0 > 0) triangularised gives
       [[S_z, 0], [Kb, S^+]] with S_z S_z^T = P_zz, Kb = P_xz S_z^-T and
       S^+ S^+^T = P^- - P_xz P_zz^-1 P_xz^T = P^+: the update's cancellation happens inside
       orthogonal transformations, so the result is always a factor of a positive
@@ -503,16 +509,16 @@ def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, K, S, x, dx, dlx, d
                 prog.emit(Dot(at(N - 1), None, [(sw0, dl(i), True)]))
 
     if not params.on_chip:  # S^- for sig_gen (the on-chip iteration goes straight to update)
-        Ap = lay.add("Apred", n, K)
+        Ap = lay.add("Apred", n, ncols)
         columns(pr, [(i, lambda k, i=i: Ap(i, k)) for i in range(n)], dx, dlx, "Apred")
-        triangularize(pr, lay, "hpred", n, K, Ap, lambda i, j: (S(i, j), "finite"), one, tiny)
+        triangularize(pr, lay, "hpred", n, ncols, Ap, lambda i, j: (S(i, j), "finite"), one, tiny)
 
     up = Program("update", lay, fmt)
     chih, z = lay["sigma_points_h"], lay["z"]
     moments(up, chih, m, dz, dlz)
     for i in range(m):
         up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
-    Au = lay.add("Aupd", m + n, K)
+    Au = lay.add("Aupd", m + n, ncols)
     columns(up, [(i, lambda k, i=i: Au(i, k)) for i in range(m)], dz, dlz, "Aupd_z")
     columns(up, [(i, lambda k, i=i: Au(m + i, k)) for i in range(n)], dx, dlx, "Aupd_x")
     Sz = lay.add("Sz", m, m)
@@ -522,7 +528,7 @@ def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, K, S, x, dx, dlx, d
         if i < m:
             return Sz(i, j), None
         return (Kb(i - m, j), None) if j < m else (S(i - m, j - m), "finite")
-    triangularize(up, lay, "hupd", m + n, K, Au, out, one, tiny, checked=m)
+    triangularize(up, lay, "hupd", m + n, ncols, Au, out, one, tiny, checked=m)
     rSz = lay.add("rSz", m)
     y = lay.add("ysolve", m)  # S_z^-1 (z - z^), by forward substitution
     t = lay.add("ypart", m)
