@@ -43,8 +43,9 @@ def _app() -> NanosatPrinted:
 
 
 def run(form: str, format: str, seeds: int = 100, steps: int = STEPS, first_seed: int = 0) -> dict:
-    """One configuration: per seed the iteration of its first fault (-1: none) and its
-    attitude error (degrees) at every iteration, (seeds, steps)."""
+    """One configuration: per seed the iteration of its first fault (-1: none), that fault's
+    STATUS bit (1 err_pivot, 2 err_nan) and its attitude error (degrees) at every iteration,
+    (seeds, steps), NaN from its fault on. The run stops when every seed has faulted."""
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.hdl.ukf.steps import programs
 
@@ -59,6 +60,7 @@ def run(form: str, format: str, seeds: int = 100, steps: int = STEPS, first_seed
     mem = np.tile(np.array(from_words(fmt, words)), (seeds, 1))
     scenarios = [app.scenario(steps, first_seed + s) for s in range(seeds)]
     fault = np.full(seeds, -1)
+    bit = np.zeros(seeds, dtype=int)  # the first fault's STATUS bit: 1 err_pivot, 2 err_nan
     st = run_batch(progs.steps["noise"], mem)
     x = lay["x"]
     est = np.empty((seeds, steps, app.n))
@@ -67,14 +69,17 @@ def run(form: str, format: str, seeds: int = 100, steps: int = STEPS, first_seed
             reg = lay[name]
             mem[:, reg.base:reg.base + reg.size] = [from_words(fmt, to_words(fmt, v)) for v in values]
         st = run_batch(progs.steps["iteration"], mem, BatchStatus(seeds))
-        fault[(fault < 0) & (st.pivot | st.nan)] = k
+        new = (fault < 0) & (st.pivot | st.nan)
+        fault[new], bit[new] = k, np.where(st.pivot[new], 1, 2)
         est[:, k] = mem[:, x.base:x.base + app.n]
+        if np.all(fault >= 0):  # every seed has faulted: nothing left to follow
+            break
     err = np.full((seeds, steps), np.nan)
     for s, sc in enumerate(scenarios):
         last = steps if fault[s] < 0 else fault[s]
         if last:
             err[s, :last] = attitude_error_deg(est[s, :last, :4], sc.truth[:last, :4])
-    return {"form": form, "format": format, "fault": fault, "err": err, "dt": app.dt}
+    return {"form": form, "format": format, "fault": fault, "bit": bit, "err": err, "dt": app.dt}
 
 
 def summary(res: dict) -> dict:
@@ -89,7 +94,10 @@ def summary(res: dict) -> dict:
     worst, mean = np.full(len(err), np.nan), np.full(len(err), np.nan)
     worst[clean], mean[clean] = np.max(tail, axis=1), np.mean(tail, axis=1)
     ok = clean & (worst < goal)
+    bits = res.get("bit", np.zeros(len(fault), dtype=int))
+    first = f"{int(np.median(fault[~clean]))}" if (~clean).any() else "-"
     return {"seeds": len(fault), "faulted": int((~clean).sum()), "converged": int(ok.sum()), "goal": goal,
+            "pivot": int((bits[~clean] == 1).sum()), "nan": int((bits[~clean] == 2).sum()), "first": first,
             "mean": float(np.median(mean[clean])) if clean.any() else float("nan"),
             "worst": float(np.max(worst[clean])) if clean.any() else float("nan")}
 
@@ -115,13 +123,15 @@ def main(argv=None) -> int:
         results = list(pool.map(_job, jobs))
     print(f"nanosatellite, P0 = I, {a.seeds} seeds x {a.steps} iterations, on-chip golden model; "
           f"converged: attitude error below the goal at every iteration from {SETTLE:g} s on\n")
-    print("| format | form | seeds faulted (err_pivot/err_nan) | converged | goal | median of the mean error "
-          "after 1 s | worst error after 1 s (seeds without a fault) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| format | form | seeds faulted (err_pivot / err_nan) | first fault, median iteration | converged | goal "
+          "| median of the mean error after 1 s | worst error after 1 s (seeds without a fault) |")
+    print("|---|---|---|---|---|---|---|---|")
     for res in results:
         s = summary(res)
-        print(f"| {res['format']} | {res['form']} | {s['faulted']} | {s['converged']} / {s['seeds']} | "
-              f"{s['goal']:g} deg | {s['mean']:.4f} deg | {s['worst']:.4f} deg |")
+        mean = f"{s['mean']:.4f} deg" if s["mean"] == s["mean"] else "-"
+        worst = f"{s['worst']:.4f} deg" if s["worst"] == s["worst"] else "-"
+        print(f"| {res['format']} | {res['form']} | {s['faulted']} ({s['pivot']} / {s['nan']}) | {s['first']} | "
+              f"{s['converged']} / {s['seeds']} | {s['goal']:g} deg | {mean} | {worst} |")
     return 0
 
 
