@@ -429,7 +429,10 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
     pair = lay.add(f"{label}_pair", rows, rows)  # y.x then y.v, by (reflection, row)
     scale = lay.add(f"{label}_scale", rows, rows)  # (y.v) / (s v_0)
     chunks = -(-cols // CHUNK)
-    part = lay.add(f"{label}_part", rows + rows * rows, 2 * chunks)  # the sums' partial sums
+    # the sums' partial sums: a row's own and its y.x with the reflecting row, words reused
+    # from one reflection to the next (the next one's sums wait for this one's updates
+    # anyway; reusing pair and scale too costs P = 1 about 170 cycles)
+    part = lay.add(f"{label}_part", 2 * rows, max(1, 2 * chunks - 2))
 
     def tree(dst, terms, slot, check=None):
         """``dst = sum(terms)``: chunks of at most CHUNK terms side by side, then a tree."""
@@ -456,7 +459,7 @@ def triangularize(prog, lay, label, rows, cols, a, out, one, tiny, checked=0) ->
         tree(ss, [(a(i, j), a(i, j), False) for j in cols_i], i, "pivot" if i < checked else None)
         for r in range(i + 1, rows):
             terms = [(a(r, j), a(i, j), False) for j in cols_i]
-            tree(pair(i, r), terms, rows + i * rows + r)
+            tree(pair(i, r), terms, rows + r)
         prog.emit(Sqrt(sg, ss))
         prog.emit(Copy(out(i, i)[0], sg, out(i, i)[1]))  # -sign(x_0) alpha = |x|
         if i + 1 == rows:
