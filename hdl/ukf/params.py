@@ -17,12 +17,18 @@ from ..arith.float.format import FloatFormat
 from ..describe import ParamError
 from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMS", "default_banks"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMS", "covariance_region", "default_banks"]
 
 #: The covariance forms: ``ldl``, the chapter's (P in the buffer, factored by LDL^T each
 #: sig_gen), and ``sqrt``, the square-root form (the Cholesky factor of P in the buffer,
 #: kept by orthogonal transformations: :mod:`kfgen.hdl.ukf.programs`).
 FORMS = ("ldl", "sqrt")
+
+
+def covariance_region(form: str) -> str:
+    """The buffer region of the state's covariance in ``form``: ``P``, or ``sqrtP`` (its
+    Cholesky factor S, P = S S^T) in the square-root form."""
+    return "sqrtP" if form == "sqrt" else "P"
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255

@@ -38,7 +38,7 @@ from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
 from ..linalg.program import Copy, CopySign, Div, Dot, Layout, Max, Program, Sqrt
-from .params import UkfParams
+from .params import UkfParams, covariance_region
 
 __all__ = ["UkfPrograms", "build_ukf", "simplex_rows", "triangularize", "qr_columns"]
 
@@ -116,7 +116,7 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     # The processor's buffer (names fixed by the issue), then work, then constants.
     sq = params.form == "sqrt"
     x = lay.add("x", n, 1, "bus")
-    P = lay.add("sqrtP" if sq else "P", n, n, "bus")  # the sqrt form: S, P = S S^T
+    P = lay.add(covariance_region(params.form), n, n, "bus")  # the sqrt form: S, P = S S^T
     Q = lay.add("Q", nw, nw, "bus")
     R = lay.add("R", nv, nv, "bus")
     chi = lay.add("sigma_points", N, M, "bus")

@@ -19,6 +19,7 @@ the C header and the Markdown document all print them from the declaration.
 from __future__ import annotations
 
 from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
+from .params import covariance_region
 
 __all__ = ["ukf_map", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "SQRT_VERSIONS", "STEPS",
            "ON_CHIP_STEPS", "SQRT_NOISE"]
@@ -76,12 +77,13 @@ def _registers(params) -> tuple[Register, ...]:
     fmt = params.fmt
     events = (
         ("done", 1, "the step started last has finished"),
-        ("err_pivot", 2, "a pivot of a factorisation was <= 0 or NaN: a squared row norm of the Householder "
-                         "triangularisation (a covariance factor of deficient rank), or D_j of Q's or R's LDL^T "
-                         "(not positive definite); the step ran to its end" if params.form == "sqrt" else
+        ("err_pivot", 2, "a pivot was <= 0 or NaN: a pivot of Q's or R's Cholesky factorisation (not positive "
+                         "definite), or the squared norm of an innovation row in update's Householder "
+                         "triangularisation (the innovation covariance singular); the step ran to its end"
+                         if params.form == "sqrt" else
                          "a pivot D_j of the LDL^T factorisation (eqs. 23-24) was <= 0 or NaN: P^a or S is "
                          "not positive definite; the step ended early and the core is idle"),
-        ("err_nan", 3, "a NaN or an infinity reached x or " + ("sqrtP" if params.form == "sqrt" else "P")),
+        ("err_nan", 3, "a NaN or an infinity reached x or " + covariance_region(params.form)),
         ("err_busy", 4, "CTRL.start was written while busy and was refused"),
     )
     regs = [
@@ -122,9 +124,9 @@ def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
     regions = (
         ("x", n, 1, "rw", "state", "state estimate x; after predict x^-, after update x^+",
          f"{column} (n = {n})"),
-        ("sqrtP", n, n, "rw", "state", "lower-triangular factor S of the state covariance, P = S S^T (a Cholesky "
-                                       "factor up to the signs of its columns); after predict S^-, after update S^+; "
-                                       "software writes chol(P0)",
+        ("sqrtP", n, n, "rw", "state", "the Cholesky factor S of the state covariance (lower triangular, positive "
+                                       "diagonal), P = S S^T; after predict S^-, after update S^+; software writes "
+                                       "chol(P0)",
          f"n x n, row-major; the core reads and writes the lower triangle and diagonal only (n = {n})")
         if params.form == "sqrt" else
         ("P", n, n, "rw", "state", "state covariance P, full; after predict P^-, after update P^+",

@@ -46,7 +46,7 @@ from cocotb.task import bridge, resume
 from cocotb.triggers import ClockCycles, RisingEdge
 from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
-from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import Status, from_words
 from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
@@ -347,7 +347,7 @@ async def python_processor(dut):
         except StepError as exc:
             r.fault(exc.at(k))
         r.record(k, await r.io.read("x"), before)
-    await r.io.read("sqrtP" if form == "sqrt" else "P")
+    await r.io.read(covariance_region(form))
     r.finish(time.monotonic() - wall)
 
 

@@ -24,12 +24,13 @@ from typing import Protocol
 
 import numpy as np
 
+from kfgen.hdl.ukf.params import covariance_region
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.linalg.exec import Status, from_words, run, to_words
 
 from .app import UkfApplication
 
-__all__ = ["CoreIO", "StepError", "initial_words", "covariance", "iteration", "Prologue", "GoldenCore", "complete"]
+__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "Prologue", "GoldenCore", "complete"]
 
 
 class CoreIO(Protocol):
@@ -74,19 +75,10 @@ def initial_words(app: UkfApplication, fmt, form: str = "ldl") -> dict[str, list
     """x0, P0, Q, R as words of ``fmt``, by region name (written once, before the first
     iteration). A core of the square-root form (``form="sqrt"``) takes P0 as its Cholesky
     factor, in region ``sqrtP``."""
-    P = ("sqrtP", np.linalg.cholesky(np.asarray(app.P0, dtype=np.float64))) if form == "sqrt" else ("P", app.P0)
+    P0 = np.asarray(app.P0, dtype=np.float64)
+    P = np.linalg.cholesky(P0) if form == "sqrt" else P0
     return {name: to_words(fmt, np.ravel(np.asarray(value, dtype=np.float64)))
-            for name, value in (("x", app.x0), P, ("Q", app.Q), ("R", app.R))}
-
-
-def covariance(core_form: str, words: list[int], fmt, n: int) -> np.ndarray:
-    """P (n x n, float64) from the words of region ``P``, or of ``sqrtP`` (S, whose lower
-    triangle is read: P = S S^T) for a core of the square-root form."""
-    A = np.array(from_words(fmt, words)).reshape(n, n)
-    if core_form != "sqrt":
-        return A
-    S = np.tril(A)
-    return S @ S.T
+            for name, value in (("x", app.x0), (covariance_region(form), P), ("Q", app.Q), ("R", app.R))}
 
 
 async def _step(io: CoreIO, name: str) -> None:

@@ -27,9 +27,9 @@ from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
 from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
-from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
-from kfgen.sim.linalg.exec import from_words, run, to_words
+from kfgen.sim.linalg.exec import from_words, to_words
 from kfgen.sim.ukf.software import Prologue
 from kfgen.sim.streams import StreamChecker
 from kfgen.sim.watchdog import Expired, Watchdog, bound, poll, wait_irq
@@ -239,21 +239,16 @@ def noise(tb):
     return Q, R
 
 
-def cov_region(tb) -> str:
-    """The covariance's region: ``P``, or ``sqrtP`` (its Cholesky factor) in the sqrt form."""
-    return "sqrtP" if tb.params.form == "sqrt" else "P"
-
-
 async def check_cov(tb):
     """The covariance's region word for word; P (float64) from it."""
-    got = await tb.check(cov_region(tb))
+    got = await tb.check(covariance_region(tb.params.form))
     return np.tril(got) @ np.tril(got).T if tb.params.form == "sqrt" else got
 
 
 async def load(tb, x, P):
     Q, R = noise(tb)
     await tb.put("x", x)
-    await tb.put(cov_region(tb), np.linalg.cholesky(P) if tb.params.form == "sqrt" else P)
+    await tb.put(covariance_region(tb.params.form), np.linalg.cholesky(P) if tb.params.form == "sqrt" else P)
     await tb.put("Q", Q)
     await tb.put("R", R)
 
@@ -340,7 +335,7 @@ async def on_chip_iterations(dut):
             await tb.step("noise")
         st, measured = await tb.step("iteration")
         assert not (st.pivot or st.nan), (it, st)
-        for name in ("x", cov_region(tb), "sigma_points", "sigma_points_f", "sigma_points_h"):
+        for name in ("x", covariance_region(tb.params.form), "sigma_points", "sigma_points_f", "sigma_points_h"):
             await tb.check(name)
         dut._log.info("iteration %d: %s cycles", it, measured)
 
@@ -408,7 +403,7 @@ async def stream_iterations(dut):
         status = await tb.read_reg("STATUS")
         assert status & tb.bits("STATUS", done=1) and not status & 1, hex(status)
         await tb.write_reg("STATUS", status)
-    for name in ("x", cov_region(tb), "z", "sigma_points_f", "sigma_points_h"):
+    for name in ("x", covariance_region(tb.params.form), "z", "sigma_points_f", "sigma_points_h"):
         await tb.check(name)
     # one transfer in and one out per measurement: nothing lost, duplicated or extra
     assert [c.transfers for c in checks] == [steps, steps], [c.transfers for c in checks]

@@ -6,8 +6,8 @@ one; the golden model in binary64 against that reference; in binary32 the nanosa
 the chapter's printed P0 = I, which faults in the ldl form; the triangularisation's program
 against numpy's Cholesky factor; the batch executor of the Monte Carlo against the golden
 executor, word for word; the map and the command line. (The RTL, word for word:
-``tests/ukf/test_ukf_core.py::test_cocotb_configurations[small_sqrt_p2]`` and
-:func:`test_nanosat_sqrt_on_chip_rtl`.)"""
+``tests/ukf/test_ukf_core.py::test_cocotb_configurations`` at ``small_sqrt_p2``, and in
+make test-full ``m20_sqrt_p2`` and ``tests/ukf/test_on_chip.py::test_figure12_sqrt``.)"""
 
 import numpy as np
 import pytest
@@ -27,8 +27,6 @@ from kfgen.sim.ukf.apps.tracker import Tracker
 from kfgen.sim.ukf.montecarlo import SPEC, run as monte_carlo
 from kfgen.sim.ukf.reference import AugmentedUKF, SquareRootUKF
 from kfgen.sim.ukf.software import initial_words
-
-from helpers import VERILATOR_CACHE, kfgen
 
 NANOSAT = "nanosat:Nanosat"
 
