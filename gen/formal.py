@@ -36,7 +36,7 @@ from typing import Callable
 
 from amaranth.back import rtlil
 
-__all__ = ["Proof", "Mutant", "Result", "proofs", "mutants", "run", "main"]
+__all__ = ["Proof", "Mutant", "Result", "proofs", "mutants", "mutated", "run", "main"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,9 @@ class Proof:
     mode: str             # bmc, prove or cover
     depth: int
     full: bool = False    # only in --full (make test-full)
+    #: Yosys commands after ``prep`` (``cutpoint t:$mul``: products free, for a proof about
+    #: control that the datapath's arithmetic only slows)
+    script: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -76,7 +79,7 @@ class Result:
     log: str = ""
 
 
-def _mutated(mutant: Mutant):
+def mutated(mutant: Mutant):
     """A copy of ``mutant.module`` with the bug planted, loaded beside the original (relative
     imports resolve in the same package); the original module is untouched."""
     spec = importlib.util.find_spec(mutant.module)
@@ -99,7 +102,7 @@ def _sby_text(proof: Proof) -> str:
     return "\n".join([
         "[options]", f"mode {mode}", f"depth {proof.depth}", "multiclock off", "",
         "[engines]", "smtbmc yices", "",
-        "[script]", "read_rtlil top.il", "prep -top top", "",
+        "[script]", "read_rtlil top.il", "prep -top top", *proof.script, "",
         "[files]", "top.il", "",
     ])
 
@@ -112,20 +115,20 @@ def _tool_env() -> dict:
     return env
 
 
-_FAILED = re.compile(r"(?:Assert failed in|Unreached cover statement at) \S+: (\S+):(\d+)")
+_FAILED = re.compile(r"(?:Assert failed in|Unreached cover statement at) (\S+): (\S+):(\d+)")
 
 
 def _what_failed(log: str) -> list[str]:
-    """The failed assertions (or unreached covers) of an sby log, each as the source line that
-    states it (where the property's name is), ``file:line`` when the line cannot be read."""
+    """The failed assertions (or unreached covers) of an sby log, each as the checker's place in
+    the harness, ``file:line`` and the property's name from that source line."""
     named = set()
-    for path, line in _FAILED.findall(log):
+    for scope, path, line in _FAILED.findall(log):
         try:
             text = Path(path).read_text().splitlines()[int(line) - 1].strip()
         except (OSError, IndexError):
             text = ""
         names = re.findall(r'f?"([^"]+)"', text)
-        named.add(f"{Path(path).name}:{line} {names[-1] if names else text}")
+        named.add(f"{scope} {Path(path).name}:{line} {names[-1] if names else text}")
     return sorted(named)
 
 
@@ -183,6 +186,30 @@ def _ukf_map(groups=None):
     return build
 
 
+def _castella(mutated):
+    from ..hdl.bus import formal
+    from ..hdl.castella import core as castella
+    from ..hdl.castella.params import CastellaParams
+    core = mutated.get("kfgen.hdl.castella.core", castella).Castella(CastellaParams())
+    return formal.StreamHarness(core, capacity=core.fifo_depth, bound=core.latency + 2)
+
+
+def _ukf_streams(mutated):
+    """An on-chip UKF core with stream ports (the tracker application, binary32: its streams are
+    the shortest, so the BMC reaches a whole measurement's way through)."""
+    from ..hdl.engine import core, formal
+    from ..hdl.ukf.core import prologue, stream_spec
+    from ..hdl.ukf.params import UkfParams
+    from ..hdl.ukf.regmap import ukf_map
+    from ..hdl.ukf.steps import programs
+    from ..sim.ukf import app  # noqa: F401 (the application loader the on-chip parameters use)
+    params = UkfParams(4, 2, 2, 2, app="tracker:Tracker", on_chip=True, streams=True)
+    progs = programs(params)
+    return formal.EngineStreamHarness(
+        params, ukf_map(params), tuple(progs.steps), progs.layout.size, stream_spec(params, progs),
+        prologue(progs), backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend)
+
+
 #: Every proof, in the order ``make formal`` runs them.
 PROOFS = [
     Proof("axi4_small_lat1", "AXI4 slave on the small map, back-end read latency 1", _axi4(1), "bmc", 12),
@@ -190,6 +217,12 @@ PROOFS = [
     Proof("axi4_small_cover", "every response kind and burst kind reached", _axi4(1), "cover", 12),
     Proof("ukf_map", "AXI4 slave and the UKF core's map, the engine free within its contract", _ukf_map(), "bmc", 10),
     Proof("ukf_map_cover", "every STATUS bit read as 1, irq, refused writes, start, reset", _ukf_map(), "cover", 12),
+    Proof("castella_streams", "Castella's s_axis/m_axis: transmitter rules, none lost or duplicated",
+          _castella, "bmc", 36, script=("cutpoint t:$mul",)),
+    Proof("castella_streams_cover", "transfers in and out, after backpressure, two inside", _castella, "cover", 40,
+          script=("cutpoint t:$mul",)),
+    Proof("ukf_streams", "an on-chip UKF's s_axis/m_axis beside the AXI4 slave", _ukf_streams, "bmc", 30),
+    Proof("ukf_streams_cover", "stream transfers in and out, after backpressure", _ukf_streams, "cover", 30),
     Proof("axi4_small_handshake_ind", "B and R hold VALID and payload until READY", _axi4(2, ("handshake",)),
           "prove", 4, full=True),
 ]
@@ -204,6 +237,16 @@ MUTANTS = [
            "with m.If(self.s_axi_bvalid):", "axi4_small_lat1", "b_channel"),
     Mutant("page_crossing_accepted", "kfgen.hdl.bus.axi4", "| ((burst == Burst.INCR) & crosses))", ")",
            "axi4_small_lat1", "resp"),
+    Mutant("castella_output_dropped", "kfgen.hdl.castella.core", "ofifo.r_en.eq(self.m_axis_tready)",
+           "ofifo.r_en.eq(1)", "castella_streams", "m_axis"),
+    Mutant("castella_taken_without_ready", "kfgen.hdl.castella.core",
+           "accept.eq(self.s_axis_tvalid & self.s_axis_tready)", "accept.eq(self.s_axis_tvalid)",
+           "castella_streams", "no_output_without_input"),
+    Mutant("ukf_stream_output_dropped", "kfgen.hdl.engine.core", "with m.If(self.m_axis_tready):",
+           "with m.If(1):", "ukf_streams", "m_axis"),
+    Mutant("ukf_stream_taken_while_busy", "kfgen.hdl.engine.core",
+           "with m.If(self.s_axis_tvalid & ~eng_busy & ~do_start):", "with m.If(self.s_axis_tvalid):",
+           "ukf_streams", "no_output_without_input"),
     Mutant("hole_read_okay", "kfgen.hdl.engine.core", "err.eq(~r_buf)", "err.eq(0)", "ukf_map", "r_err"),
     Mutant("hole_write_okay", "kfgen.hdl.engine.core",
            'reg_err = ~(is_reg["CTRL"] | is_reg["STATUS"] | is_reg.get("IRQ_ENABLE", 0)) | refused_start',
@@ -258,7 +301,7 @@ def main(argv=None) -> int:
         for mu in mutants():
             if not mu.name.startswith(args.only) and not mu.proof.startswith(args.only):
                 continue
-            r = run(by_name[mu.proof], work / f"mutant_{mu.name}", {mu.module: _mutated(mu)})
+            r = run(by_name[mu.proof], work / f"mutant_{mu.name}", {mu.module: mutated(mu)})
             caught = r.status == "FAIL" and any(mu.expect in f for f in r.failed)
             print(f"mutant {mu.name:33s} {mu.proof:20s} {'caught' if caught else 'MISSED'}"
                   f"  ({r.status}, {', '.join(r.failed) or '-'}, {r.seconds:.1f} s)", flush=True)

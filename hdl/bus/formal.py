@@ -26,16 +26,17 @@ from amaranth.lib.wiring import In
 from .axi4 import DATA_WIDTH, FULL_SIZE, Burst, Resp, WordBusSignature
 
 __all__ = ["Axi4Properties", "StreamProperties", "TransferCount", "SmallMap", "hold_rule",
-           "stall_counter", "drive_any", "bounded_run", "SlaveHarness"]
+           "stall_counter", "drive_any", "bounded_run", "SlaveHarness", "StreamHarness"]
 
 
-def hold_rule(m: Module, valid, ready, payload, check, name: str):
+def hold_rule(m: Module, valid, ready, payload, check, name: str, reset=None):
     """``valid`` high without ``ready`` stays high the next cycle with the same ``payload``:
     the transmitter's rule of every AXI channel. ``check`` is ``Assert`` (a port the design
-    drives) or ``Assume`` (its master's)."""
+    drives) or ``Assume`` (its master's). ``reset``: a reset of the port (the rule starts
+    afresh after it, as after ARESETn)."""
     was_waiting = Signal(name=f"{name}_was_waiting")
     was = Signal(len(payload), name=f"{name}_was")
-    m.d.sync += [was_waiting.eq(valid & ~ready), was.eq(payload)]
+    m.d.sync += [was_waiting.eq(valid & ~ready & (~reset if reset is not None else 1)), was.eq(payload)]
     m.d.comb += check(~was_waiting | (valid & (payload == was)), f"{name}_held", src_loc_at=1)
 
 
@@ -255,16 +256,19 @@ def multi_w(m, w_hs, last):
 class StreamProperties(Elaboratable):
     """The AXI4-Stream transmitter rule on one port: TVALID, once high, stays high with the
     same payload until TREADY (``role="out"``: asserted of the design; ``"in"``: assumed of
-    its source). Also covers a transfer, and one after a cycle of backpressure."""
+    its source), except across ``reset`` (a soft reset of the core, where it has one). Also
+    covers a transfer, and one after a cycle of backpressure."""
 
-    def __init__(self, valid, ready, payload, role: str, name: str):
+    def __init__(self, valid, ready, payload, role: str, name: str, reset=None):
         if role not in ("in", "out"):
             raise ValueError(f"role must be 'in' or 'out', not {role!r}")
         self._v, self._r, self._p, self._role, self._name = valid, ready, payload, role, name
+        self._reset = reset
 
     def elaborate(self, platform):
         m = Module()
-        hold_rule(m, self._v, self._r, self._p, Assert if self._role == "out" else Assume, self._name)
+        hold_rule(m, self._v, self._r, self._p, Assert if self._role == "out" else Assume, self._name,
+                  self._reset)
         stalled = Signal(name=f"{self._name}_stalled")
         m.d.sync += stalled.eq(self._v & ~self._r)
         m.d.comb += [Cover(self._v & self._r, f"cover_{self._name}_transfer"),
@@ -278,18 +282,23 @@ class TransferCount(Elaboratable):
     with the output's TREADY high, an input inside gets its output within ``bound`` cycles
     (bounded liveness; counted while the output's TREADY stays high)."""
 
-    def __init__(self, in_hs, out_hs, out_ready, capacity: int, bound: int, name: str = "stream"):
+    def __init__(self, in_hs, out_hs, out_ready, capacity: int, bound: int, name: str = "stream",
+                 flush=None):
         self._in, self._out, self._ready = in_hs, out_hs, out_ready
         self._cap, self._bound, self._name = capacity, bound, name
+        self._flush = flush  # a soft reset: the design drops what is inside (by its contract)
 
     def elaborate(self, platform):
         m = Module()
         inside = Signal(range(self._cap + 2), name=f"{self._name}_inside")
         m.d.sync += inside.eq(inside + self._in - self._out)
+        if self._flush is not None:
+            with m.If(self._flush):
+                m.d.sync += inside.eq(0)
         m.d.comb += [
             Assert(~self._out | (inside != 0) | self._in, f"{self._name}_no_output_without_input"),
             Assert(inside <= self._cap, f"{self._name}_at_most_{self._cap}_inside"),
-            Cover((inside == 2) & self._out, f"cover_{self._name}_two_inside"),
+            Cover((inside == min(2, self._cap)) & self._out, f"cover_{self._name}_{min(2, self._cap)}_inside"),
         ]
         stall_counter(m, (inside != 0) & self._ready & ~self._out, self._name, self._bound)
         return m
@@ -395,4 +404,32 @@ class SlaveHarness(Elaboratable):
             dut, self._aw, self._idw, read_ok=SmallMap.readable,
             write_ok=lambda word, strb, wdata: SmallMap.writable(word), groups=self._groups,
             r_bound=self._lat + 5)
+        return m
+
+
+class StreamHarness(Elaboratable):
+    """A stream core (``s_axis_*`` in, ``m_axis_*`` out, one output per input, in order) with
+    its inputs free: ``s_axis`` under the transmitter rule, ``m_axis_tready`` anything. Checks
+    the transmitter rule on ``m_axis``, that ``s_axis_tready`` does not wait for
+    ``s_axis_tvalid`` (AXI4-Stream allows it; the cores promise it), and
+    :class:`TransferCount` with ``capacity`` and ``bound``."""
+
+    def __init__(self, dut, capacity: int, bound: int):
+        self._dut, self._cap, self._bound = dut, capacity, bound
+
+    def elaborate(self, platform):
+        m = Module()
+        dut = self._dut
+        m.submodules.dut = dut
+        ins = {name: member for name, member in dut.signature.members.items() if member.flow == In}
+        drive_any(m, dut, ins)
+        m.d.comb += Assume(ResetSignal() == 0)
+        in_payload = Cat(getattr(dut, n) for n in ins if n.startswith("s_axis_") and n != "s_axis_tvalid")
+        outs = [n for n in dut.signature.members if n.startswith("m_axis_") and n not in ("m_axis_tvalid", "m_axis_tready")]
+        out_payload = Cat(getattr(dut, n) for n in outs)
+        m.submodules.s_axis = StreamProperties(dut.s_axis_tvalid, dut.s_axis_tready, in_payload, "in", "s_axis")
+        m.submodules.m_axis = StreamProperties(dut.m_axis_tvalid, dut.m_axis_tready, out_payload, "out", "m_axis")
+        m.submodules.count = TransferCount(dut.s_axis_tvalid & dut.s_axis_tready,
+                                           dut.m_axis_tvalid & dut.m_axis_tready, dut.m_axis_tready,
+                                           self._cap, self._bound)
         return m

@@ -33,12 +33,12 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from ..bus.axi4 import Axi4Slave, axi4_slave_members
-from ..bus.formal import Axi4Properties, bounded_run, drive_any
+from ..bus.formal import Axi4Properties, StreamProperties, TransferCount, bounded_run, drive_any
 from ..linalg.banks import BUS_READ_LATENCY
-from .core import Backend
+from .core import Backend, stream_members
 from .regmap import BUS_ID_WIDTH
 
-__all__ = ["EngineModel", "MapProperties", "EngineMapHarness"]
+__all__ = ["EngineModel", "MapProperties", "EngineMapHarness", "EngineStreamHarness"]
 
 _EVENTS = ("done", "err_pivot", "err_nan", "err_busy")
 
@@ -49,11 +49,14 @@ class EngineModel(wiring.Component):
     clears the fault bits; a busy step ends after any number of cycles (``done`` high one
     cycle with ``busy`` low, the fault bits as they please); ``halt`` makes it idle without
     ``done``. Reads are granted (``mem_rok``) when idle and, while busy, at least once in
-    ``slot`` cycles; their data are anything. Its memory writes are the harness's to check."""
+    ``slot`` cycles; their data are anything. Its memory writes are the harness's to check.
+    With ``max_busy``, a step ends within that many cycles (what a bounded-liveness proof
+    needs: the real steps end after :meth:`~kfgen.hdl.linalg.engine.Engine.cycles`)."""
 
-    def __init__(self, step_names, size: int, width: int, slot: int = 4):
+    def __init__(self, step_names, size: int, width: int, slot: int = 4, max_busy: int | None = None):
         self._names = tuple(step_names)
         self._slot = slot
+        self._max_busy = max_busy  # a step ends within this many cycles (for liveness)
         super().__init__({
             "start": In(1), "step": In(range(max(2, len(self._names)))), "halt": In(1),
             "busy": Out(1), "done": Out(1), "err_pivot": Out(1), "err_nan": Out(1), "flags": Out(5),
@@ -71,6 +74,8 @@ class EngineModel(wiring.Component):
         m.d.comb += [rok.eq(AnySeq(1)), self.mem_rok.eq(~self.busy | rok),
                      self.mem_rdata.eq(AnySeq(len(self.mem_rdata))), self.flags.eq(AnySeq(5))]
         bounded_run(m, self.busy & ~rok, self._slot - 1, "engine_read_slot")
+        if self._max_busy is not None:
+            bounded_run(m, self.busy, self._max_busy, "engine_step_length")
         m.d.sync += self.done.eq(0)
         with m.If(self.halt):
             m.d.sync += self.busy.eq(0)
@@ -267,4 +272,46 @@ class EngineMapHarness(Elaboratable):
             read_ok=lambda w: props.decode.any_reg(w) | props.decode.memory(w),
             write_ok=lambda w, strb, wdata: ~props.write_refused(w, strb, wdata, eng.busy),
             r_bound=BUS_READ_LATENCY + 2 + 4)
+        return m
+
+
+class EngineStreamHarness(Elaboratable):
+    """An engine core with stream ports (and its prologue step, if any) on
+    :class:`EngineModel`, whose steps end within ``step_bound`` cycles; the AXI4 master and
+    the streams free under their rules. Checks the transmitter rule on ``m_axis``, one
+    ``m_axis`` transfer per ``s_axis`` transfer (a soft reset by ``CTRL.reset`` drops the
+    measurement inside, as documented), each within the stream latency plus two steps
+    (a prologue and the main step), and the AXI4 slave's handshakes beside them (its other
+    rules are :class:`EngineMapHarness`'s)."""
+
+    def __init__(self, params, rmap, step_names, size, stream, prologue, *, backend_cls=Backend,
+                 step_bound: int = 3):
+        self._p, self._map, self._names, self._size = params, rmap, step_names, size
+        self._stream, self._prologue, self._cls, self._steps = stream, prologue, backend_cls, step_bound
+
+    def elaborate(self, platform):
+        m = Module()
+        aw, width, spec = self._map.address_width, self._p.fmt.width, self._stream
+        m.submodules.engine = eng = EngineModel(self._names, self._size, width, max_busy=self._steps)
+        m.submodules.front = front = Axi4Slave(aw, BUS_ID_WIDTH, BUS_READ_LATENCY)
+        m.submodules.back = back = self._cls(self._p, eng, self._map, spec, self._prologue)
+        wiring.connect(m, front.bus, back.bus)
+        drive_any(m, front, axi4_slave_members(aw, BUS_ID_WIDTH))
+        drive_any(m, back, stream_members(spec))
+        m.d.comb += Assume(ResetSignal() == 0)
+        m.submodules.axi = Axi4Properties(front, aw, BUS_ID_WIDTH, groups=("handshake",))
+        ctrl = self._map["CTRL"]
+        bus = back.bus
+        soft_reset = (bus.w_en & (bus.w_addr == ctrl.offset // 4) & bus.w_strb[0]
+                      & bus.w_data[ctrl.field("reset").lsb])
+        m.submodules.s_axis = StreamProperties(back.s_axis_tvalid, back.s_axis_tready, back.s_axis_tdata,
+                                               "in", "s_axis")
+        m.submodules.m_axis = StreamProperties(back.m_axis_tvalid, back.m_axis_tready,
+                                               Cat(back.m_axis_tdata, back.m_axis_tuser), "out", "m_axis",
+                                               reset=soft_reset)
+        steps = 2 if self._prologue is not None else 1
+        m.submodules.count = TransferCount(
+            back.s_axis_tvalid & back.s_axis_tready, back.m_axis_tvalid & back.m_axis_tready,
+            back.m_axis_tready, capacity=1, bound=spec.latency() + steps * (self._steps + 1) + 2,
+            flush=soft_reset)
         return m
