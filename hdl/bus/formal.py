@@ -155,10 +155,8 @@ class Axi4Properties(Elaboratable):
         bursts, responses = self._checker("bursts"), self._checker("responses")
 
         burst = data.StructLayout({"id": idw, "len": 8, "addr": waw, "bad": 1, "fixed": 1})
-        aw_hs = s("awvalid") & s("awready")
         w_hs = s("wvalid") & s("wready")
         b_hs = s("bvalid") & s("bready")
-        ar_hs = s("arvalid") & s("arready")
         r_hs = s("rvalid") & s("rready")
 
         def accepted(q, ch):

@@ -20,7 +20,8 @@ __all__ = ["run_castella"]
 
 def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = None,
                  gap: float = 0.0, stall: float = 0.0, seed: int = 1, build_dir=None,
-                 cache_dir=None, waves: bool = False, name: str = "run") -> dict:
+                 cache_dir=None, waves: bool = False, name: str = "run", test: str = "stream",
+                 env: dict | None = None) -> dict:
     """Stream measurements through the core in Verilator and collect the results.
 
     ``expected`` (``tdata``, ``tid``, ``tuser`` word arrays) makes the testbench compare
@@ -28,7 +29,10 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     Returns the output words (``tdata``, ``tid``, ``tuser``), the decoded fields, and
     ``in_cycle``/``out_cycle`` of every handshake. The run's files go to ``build_dir``
     (default ``rtl_dir/sim_build``), the Verilator build to ``cache_dir`` (default
-    ``build_dir``). ``waves`` writes ``build_dir/<name>.fst``.
+    ``build_dir``). ``waves`` writes ``build_dir/<name>.fst``. ``test`` names the testbench's
+    case: ``stream`` (this run), or ``fault_campaign`` (``env``'s ``KFGEN_TB_SEQUENCES``
+    sequences of random traffic and resets, each followed by this run checked; returns
+    nothing).
     """
     rtl_dir = Path(rtl_dir).resolve()
     build_dir = Path(build_dir or rtl_dir / "sim_build").resolve()
@@ -55,7 +59,10 @@ def run_castella(rtl_dir, top: str, tid, y, restart, *, expected: dict | None = 
     if out.exists():
         out.unlink()
     run_test(model, "kfgen.sim.castella.tb", build_dir, name,
-             {"KFGEN_TB_MANIFEST": str(manifest_path), "KFGEN_TB_STIM": str(stim), "KFGEN_TB_OUT": str(out)})
+             {"KFGEN_TB_MANIFEST": str(manifest_path), "KFGEN_TB_STIM": str(stim), "KFGEN_TB_OUT": str(out),
+              "COCOTB_TEST_FILTER": rf"kfgen\.sim\.castella\.tb\.{test}\b", **(env or {})})
+    if test != "stream":
+        return {}
     res = dict(np.load(out, allow_pickle=True))
     res.update(unpack_fields(manifest, "m_axis_tdata", res["tdata"]))
     res.update(unpack_fields(manifest, "m_axis_tuser", res["tuser"]))

@@ -41,24 +41,24 @@ def _field_text(manifest, port, word):
     return " ".join(parts) or hex(word)
 
 
-@cocotb.test()
-async def stream(dut):
-    manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
-    stim = np.load(os.environ["KFGEN_TB_STIM"], allow_pickle=True)
-    tids, tdata, tuser = (stim[k].astype(np.int64) for k in ("tid", "tdata", "tuser"))
-    gap, stall = float(stim["gap"]), float(stim["stall"])
-    rng = np.random.default_rng(int(stim["seed"]))
-    expect = {k: stim[f"expect_{k}"] for k in ("tdata", "tid", "tuser") if f"expect_{k}" in stim}
-    n = len(tids)
-
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+async def _reset(dut, cycles=2):
+    """``rst`` high for ``cycles`` falling edges, from the next one (never in a read-only phase)."""
+    await FallingEdge(dut.clk)
     dut.rst.value = 1
     dut.s_axis_tvalid.value = 0
     dut.m_axis_tready.value = 0
-    for _ in range(2):
+    for _ in range(cycles):
         await FallingEdge(dut.clk)
     dut.rst.value = 0
 
+
+async def _clean_run(dut, manifest, stim, rng):
+    """Stream the stimulus's measurements (random gaps and stalls), compare every result with
+    the expectation as it arrives, then idle: nothing more may come out. The results."""
+    tids, tdata, tuser = (stim[k].astype(np.int64) for k in ("tid", "tdata", "tuser"))
+    gap, stall = float(stim["gap"]), float(stim["stall"])
+    expect = {k: stim[f"expect_{k}"] for k in ("tdata", "tid", "tuser") if f"expect_{k}" in stim}
+    n = len(tids)
     streams = [StreamChecker.axis(dut, "m_axis"), StreamChecker.axis(dut, "s_axis")]
     got = {"tdata": [], "tid": [], "tuser": []}
     in_cycle, out_cycle = [], []
@@ -109,11 +109,64 @@ async def stream(dut):
         for checker in streams:
             checker.sample(cycle + 1 + k)
         extra += int(dut.m_axis_tvalid.value)
+    assert extra == 0, f"{extra} results beyond the {n} inputs"
+    assert not mismatches, f"{len(mismatches)} of {n} results differ from the golden model:\n" + \
+        "\n".join(mismatches[:20])
+    return got, in_cycle, out_cycle, cycle, streams
 
+
+@cocotb.test()
+async def stream(dut):
+    manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+    stim = np.load(os.environ["KFGEN_TB_STIM"], allow_pickle=True)
+    rng = np.random.default_rng(int(stim["seed"]))
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    await _reset(dut)
+    got, in_cycle, out_cycle, cycle, streams = await _clean_run(dut, manifest, stim, rng)
     np.savez(os.environ["KFGEN_TB_OUT"], tdata=np.array(got["tdata"], dtype=object),
              tid=np.array(got["tid"]), tuser=np.array(got["tuser"]),
              in_cycle=np.array(in_cycle), out_cycle=np.array(out_cycle), cycles=cycle,
              **{f"{c.name}_waits": c.waits for c in streams})
-    assert extra == 0, f"{extra} results beyond the {n} inputs"
-    assert not mismatches, f"{len(mismatches)} of {n} results differ from the golden model:\n" + \
-        "\n".join(mismatches[:20])
+
+
+@cocotb.test()
+async def fault_campaign(dut):
+    """``KFGEN_TB_SEQUENCES`` sequences: random traffic on both streams (any track, any data,
+    restart flags, random valid and ready, m_axis still held to the AXI4-Stream rules) cut by
+    resets (``rst``) at random cycles, in flight or not; then, after a reset, the stimulus's
+    clean run, every result against the golden model, and nothing more out. Nothing may hang:
+    a clean run has its timeout."""
+    manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+    stim = np.load(os.environ["KFGEN_TB_STIM"], allow_pickle=True)
+    rng = np.random.default_rng(int(stim["seed"]))
+    tracks = manifest["parameters"]["tracks"]
+    widths = {p["name"]: p["width"] for p in manifest["ports"]}
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    resets = 0
+    for _ in range(int(os.environ.get("KFGEN_TB_SEQUENCES", "20"))):
+        await _reset(dut)
+        checker = StreamChecker.axis(dut, "m_axis")
+        valid = False
+        for cycle in range(int(rng.integers(10, 4 * manifest["latency_cycles"]))):
+            await FallingEdge(dut.clk)
+            if rng.random() < 0.02:  # a reset in the middle of the traffic
+                await _reset(dut, int(rng.integers(1, 4)))
+                checker = StreamChecker.axis(dut, "m_axis")
+                valid = False
+                resets += 1
+                continue
+            if not valid and rng.random() < 0.7:
+                dut.s_axis_tdata.value = int(rng.integers(0, 1 << widths["s_axis_tdata"]))
+                dut.s_axis_tid.value = int(rng.integers(0, tracks))
+                dut.s_axis_tuser.value = int(rng.integers(0, 2))
+                valid = True
+            dut.s_axis_tvalid.value = int(valid)
+            dut.m_axis_tready.value = int(rng.random() < 0.6)
+            await ReadOnly()
+            checker.sample(cycle)
+            if valid and dut.s_axis_tready.value:
+                valid = False
+        await FallingEdge(dut.clk)
+        await _reset(dut)
+        await _clean_run(dut, manifest, stim, rng)
+    dut._log.info("fault campaign: %d resets in the traffic", resets)

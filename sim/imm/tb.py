@@ -104,6 +104,27 @@ async def iterations(dut):
     assert not (st.pivot or st.nan) and np.isfinite(mu).all() and abs(mu.sum() - 1) < 1e-3, (st, mu)
 
 
+async def clean_iteration(tb):
+    """Freshly loaded models and one iteration, every word against the golden model (what a
+    fault campaign's sequence must leave the core able to do)."""
+    values = system(tb.params, tb.rng)
+    await load(tb, values)
+    st, _, _ = await iterate(tb, values["H"][:tb.params.d] @ values["x_model"][0])
+    assert not (st.pivot or st.nan), st
+
+
+@cocotb.test()
+async def fault_campaign(dut):
+    """Seeded random sequences of bus traffic, starts, soft and bus resets, each followed by a
+    clean iteration (:mod:`kfgen.sim.campaign`)."""
+    from kfgen.sim.campaign import engine_campaign
+    from kfgen.sim.ukf.tb import CLOCK_NS
+
+    tb = await setup(dut, ImmTB)
+    counts = await engine_campaign(tb, clean_iteration, CLOCK_NS)
+    dut._log.info("fault campaign: %s", counts)
+
+
 @cocotb.test()
 async def errors(dut):
     """Holes, read-only regions, strobes, writes and start while busy, reads while busy, soft

@@ -33,7 +33,8 @@ def expected(params: SchurParams, matrices: list[list[int]]) -> tuple[list[int],
 
 
 def run_schur_group(build_dir, cores: dict, *, calm: int = 50, gap: float = 0.3, stall: float = 0.3,
-                    seed: int = 1, name: str = "schur", cache_dir=None, waves: bool = False) -> dict:
+                    seed: int = 1, name: str = "schur", cache_dir=None, waves: bool = False,
+                    test: str = "stream", env: dict | None = None) -> dict:
     """Simulate generated units in one Verilator build and check every result.
 
     ``cores`` maps an instance prefix to ``(rtl_dir, top, matrices)``, ``matrices`` a list of
@@ -41,7 +42,10 @@ def run_schur_group(build_dir, cores: dict, *, calm: int = 50, gap: float = 0.3,
     ``calm`` matrices go without idle cycles or backpressure, the rest with the probabilities
     ``gap`` and ``stall``. Raises ``AssertionError`` on any difference; returns per-prefix
     records (``tdata``, ``tuser``, ``in_cycle``, ``out_cycle``, ...). Files go to ``build_dir``,
-    the Verilator build to ``cache_dir`` (default ``build_dir``).
+    the Verilator build to ``cache_dir`` (default ``build_dir``). ``test`` names the testbench's
+    case: ``stream`` (this run) or ``fault_campaign`` (``env``'s ``KFGEN_TB_SEQUENCES``
+    sequences of random traffic and resets, each followed by this run checked; returns
+    nothing).
     """
     build_dir = Path(build_dir).resolve()
     build_dir.mkdir(parents=True, exist_ok=True)
@@ -64,5 +68,8 @@ def run_schur_group(build_dir, cores: dict, *, calm: int = 50, gap: float = 0.3,
     model = build(sources + [wrapper], f"{name}_top", cache_dir or build_dir, waves=waves, cycles=cycles)
     group = build_dir / f"{name}_group.json"
     group.write_text(json.dumps({"cores": specs}))
-    run_test(model, "kfgen.sim.schur.tb", build_dir, name, {"KFGEN_TB_GROUP": str(group)})
+    run_test(model, "kfgen.sim.schur.tb", build_dir, name,
+             {"KFGEN_TB_GROUP": str(group), "COCOTB_TEST_FILTER": rf"kfgen\.sim\.schur\.tb\.{test}\b", **(env or {})})
+    if test != "stream":
+        return {}
     return {s["prefix"]: dict(np.load(s["out"], allow_pickle=True)) for s in specs}

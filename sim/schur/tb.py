@@ -50,19 +50,35 @@ class _Core:
         self.s_valid, self.s_ready, self.s_data = sig("s_axis_tvalid"), sig("s_axis_tready"), sig("s_axis_tdata")
         self.m_valid, self.m_ready = sig("m_axis_tvalid"), sig("m_axis_tready")
         self.m_data, self.m_user = sig("m_axis_tdata"), sig("m_axis_tuser")
-        self.checkers = [
-            StreamChecker(f"{self.prefix}_m_axis", self.m_valid, self.m_ready,
-                          {"tdata": self.m_data, "tuser": self.m_user}),
-            StreamChecker(f"{self.prefix}_s_axis", self.s_valid, self.s_ready, {"tdata": self.s_data}),
-        ]
+        self.checkers = self._checkers()
         self.sent, self.offered, self.ready = 0, False, False
         self.in_cycle: list[int] = []
         self.got: list[tuple[int, int, int]] = []  # (tdata, tuser, cycle)
         self.errors: list[str] = []
 
+    def _checkers(self):
+        return [StreamChecker(f"{self.prefix}_m_axis", self.m_valid, self.m_ready,
+                              {"tdata": self.m_data, "tuser": self.m_user}),
+                StreamChecker(f"{self.prefix}_s_axis", self.s_valid, self.s_ready, {"tdata": self.s_data})]
+
     def reset(self):
         self.s_valid.value = 0
         self.m_ready.value = 0
+
+    def restart(self):
+        """The stimulus from its start, after a reset (fresh stream checkers)."""
+        self.reset()
+        self.checkers = self._checkers()
+        self.sent, self.offered, self.ready = 0, False, False
+        self.in_cycle, self.got = [], []
+
+    def junk(self, rng):
+        """Random traffic: any word offered (and withdrawn: this is traffic a reset will cut,
+        not a stream the rules hold), any ready."""
+        width = len(self.s_data)
+        self.s_data.value = int.from_bytes(rng.bytes((width + 7) // 8), "little") & ((1 << width) - 1)
+        self.s_valid.value = int(rng.random() < 0.5)
+        self.m_ready.value = int(rng.random() < 0.5)
 
     def drive(self):
         calm = self.sent < self.calm
@@ -105,17 +121,9 @@ class _Core:
         return len(self.got) >= self.n
 
 
-@cocotb.test()
-async def stream(dut):
-    group = json.loads(open(os.environ["KFGEN_TB_GROUP"]).read())
-    cores = [_Core(dut, spec) for spec in group["cores"]]
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
-    dut.rst.value = 1
-    for c in cores:
-        c.reset()
-    for _ in range(2):
-        await FallingEdge(dut.clk)
-    dut.rst.value = 0
+async def _clean_run(dut, cores):
+    """Every core's stimulus through, each result checked as it comes; then nothing more.
+    The cycles taken."""
     cycle = 0
     limit = 1000 + max(4 * c.n * (c.ii + 1) + c.latency for c in cores)
     while not all(c.done for c in cores):
@@ -138,11 +146,60 @@ async def stream(dut):
         await ReadOnly()
         for c in cores:
             c.sample(cycle)
+    errors = [e for c in cores for e in c.errors]
+    extra = [f"{c.prefix}: {len(c.got) - c.n} results too many" for c in cores if len(c.got) != c.n]
+    assert not errors and not extra, "\n".join(extra + errors)
+    return cycle
+
+
+async def _reset(dut, cores, cycles=2):
+    await FallingEdge(dut.clk)
+    dut.rst.value = 1
+    for c in cores:
+        c.reset()
+    for _ in range(cycles):
+        await FallingEdge(dut.clk)
+    dut.rst.value = 0
+
+
+@cocotb.test()
+async def stream(dut):
+    group = json.loads(open(os.environ["KFGEN_TB_GROUP"]).read())
+    cores = [_Core(dut, spec) for spec in group["cores"]]
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    await _reset(dut, cores)
+    cycle = await _clean_run(dut, cores)
     for c in cores:
         np.savez(c.out_path, tdata=np.array([g[0] for g in c.got], dtype=object),
                  tuser=np.array([g[1] for g in c.got]), out_cycle=np.array([g[2] for g in c.got]),
                  in_cycle=np.array(c.in_cycle), cycles=cycle, m_axis_waits=c.checkers[0].waits,
                  s_axis_waits=c.checkers[1].waits)
-    errors = [e for c in cores for e in c.errors]
-    extra = [f"{c.prefix}: {len(c.got) - c.n} results too many" for c in cores if len(c.got) != c.n]
-    assert not errors and not extra, "\n".join(extra + errors)
+
+
+@cocotb.test()
+async def fault_campaign(dut):
+    """``KFGEN_TB_SEQUENCES`` sequences: random traffic into every core cut by resets
+    (``rst``) at random cycles, then, after a reset, the stimulus's clean run with every
+    result against the golden model (the calm matrices at the manifest's exact latency and
+    initiation interval) and nothing more out. Nothing may hang: each clean run has its
+    timeout."""
+    group = json.loads(open(os.environ["KFGEN_TB_GROUP"]).read())
+    cores = [_Core(dut, spec) for spec in group["cores"]]
+    rng = np.random.default_rng(cores[0].rng.integers(1 << 32))
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    longest = max(c.latency for c in cores)
+    resets = 0
+    for _ in range(int(os.environ.get("KFGEN_TB_SEQUENCES", "20"))):
+        await _reset(dut, cores)
+        for _ in range(int(rng.integers(5, 3 * longest))):
+            await FallingEdge(dut.clk)
+            if rng.random() < 0.03:
+                await _reset(dut, cores, int(rng.integers(1, 4)))
+                resets += 1
+            for c in cores:
+                c.junk(rng)
+        await _reset(dut, cores)
+        for c in cores:
+            c.restart()
+        await _clean_run(dut, cores)
+    dut._log.info("fault campaign: %d resets in the traffic", resets)

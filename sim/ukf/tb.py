@@ -253,42 +253,76 @@ async def load(tb, x, P):
     await tb.put("R", R)
 
 
+def start_values(tb):
+    """x0 and P0 of the testbench's runs, for any n."""
+    n = tb.params.n
+    P0m = np.eye(n) * 0.3
+    P0m[:2, :2] = np.array(P0)[:n, :n] if n >= 2 else P0m[:2, :2]
+    return np.resize(X0, n), P0m
+
+
+async def iteration(tb, truth):
+    """One three-step iteration (sig_gen, f in software, predict, h, update) with every word
+    checked against the golden model; (truth, z, x, P, cycles) after it."""
+    p = tb.params
+    n, m, nw, nv = p.n, p.m, p.nw, p.nv
+    cycles = {}
+    st, cycles["sig_gen"] = await tb.step("sig_gen")
+    assert not st.pivot
+    chi = await tb.check("sigma_points")  # N points x M
+    pts_f = np.array([f(c[:n], c[n:n + nw]) for c in chi])
+    words_f = await tb.put("sigma_points_f", pts_f)
+    _, cycles["predict"] = await tb.step("predict")
+    await tb.check("x")
+    await check_cov(tb)
+    moved = np.array(from_words(tb.fmt, words_f)).reshape(p.N, n)
+    await tb.put("sigma_points_h", np.array([h(xf, c[n + nw:]) for xf, c in zip(moved, chi)]))
+    truth = f(truth, np.zeros(nw))
+    z = h(truth, np.zeros(nv)) + tb.rng.normal(0, 0.1, m)
+    await tb.put("z", z)
+    _, cycles["update"] = await tb.step("update")
+    x = await tb.check("x")
+    P = await check_cov(tb)
+    return truth, z, x, P, cycles
+
+
+async def clean_iteration(tb):
+    """Freshly loaded x, P, Q, R and one whole iteration, every word against the golden model
+    (what a fault campaign's sequence must leave the core able to do)."""
+    x0, P0m = start_values(tb)
+    await load(tb, x0, P0m)
+    await iteration(tb, np.array(x0))
+
+
+@cocotb.test()
+async def fault_campaign(dut):
+    """Seeded random sequences of bus traffic, starts, soft and bus resets, each followed by a
+    clean iteration (:mod:`kfgen.sim.campaign`)."""
+    from kfgen.sim.campaign import engine_campaign
+
+    tb = await setup(dut)
+    counts = await engine_campaign(tb, clean_iteration, CLOCK_NS)
+    dut._log.info("fault campaign: %s", counts)
+
+
 @cocotb.test()
 async def iterations(dut):
     """ID, then several UKF iterations (sig_gen, f, predict, h, update) with every word
     checked, the cycles measured, and the result against the float64 reference."""
     tb = await setup(dut)
     p = tb.params
-    n, m, nw, nv = p.n, p.m, p.nw, p.nv
+    n, m = p.n, p.m
     ident = await tb.read_reg("ID") | await tb.read_reg("ID", 1) << 32
     for fd in tb.regs["ID"]["fields"]:
         assert ident >> fd["lsb"] & ((1 << fd["width"]) - 1) == fd["reset"], fd["name"]
     assert (ident >> 32 & 0xFF, ident >> 56 & 0xFF, ident >> 22 & 0x3FF) == (n, m, p.pes)
-    x0 = np.resize(X0, n)
-    P0m = np.eye(n) * 0.3
-    P0m[:2, :2] = np.array(P0)[:n, :n] if n >= 2 else P0m[:2, :2]
+    x0, P0m = start_values(tb)
     Q, R = noise(tb)
     await load(tb, x0, P0m)
     ref = AugmentedUKF_ref(p, x0, P0m, Q, R)
     truth = np.array(x0)
-    cycles = {}
     for it in range(int(os.environ.get("KFGEN_TB_ITERATIONS", "5"))):
-        st, cycles["sig_gen"] = await tb.step("sig_gen")
-        assert not st.pivot
-        chi = await tb.check("sigma_points")  # N points x M
-        pts_f = np.array([f(c[:n], c[n:n + nw]) for c in chi])
-        words_f = await tb.put("sigma_points_f", pts_f)
-        _, cycles["predict"] = await tb.step("predict")
-        await tb.check("x")
-        await check_cov(tb)
-        moved = np.array(from_words(tb.fmt, words_f)).reshape(p.N, n)
-        await tb.put("sigma_points_h", np.array([h(xf, c[n + nw:]) for xf, c in zip(moved, chi)]))
-        truth = f(truth, np.zeros(nw))
-        z = h(truth, np.zeros(nv)) + tb.rng.normal(0, 0.1, m)
-        await tb.put("z", z)
-        _, cycles["update"] = await tb.step("update")
-        x = await tb.check("x")
-        P = await check_cov(tb)
+        truth, z, x, P, cycles = await iteration(tb, truth)
         ref.predict()
         ref.update(z)
         dut._log.info("iteration %d: cycles %s, x %s", it, cycles, x.ravel())

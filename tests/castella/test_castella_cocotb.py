@@ -221,3 +221,24 @@ def test_monte_carlo_50_runs(core, scenario):
     codes = scenario_codes(p, 50, seed=41, which=(scenario,))
     tids, ys, rs = scenarios.interleave(codes, np.random.default_rng(41), "random")
     run_checked(out, p, man, tids, ys, rs, gap=0.1, stall=0.1, seed=9, name=f"mc_{scenario}")
+
+
+#: Fault campaign sequences: make test runs the first, make test-full the second.
+CAMPAIGN = [pytest.param(300, id="300"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+
+
+@pytest.mark.xdist_group("castella")
+@pytest.mark.parametrize("sequences", CAMPAIGN)
+def test_fault_campaign(core, sequences):
+    """Random traffic on both streams cut by resets at random cycles, then after each
+    sequence a clean run (restart on the first measurement) against the golden model
+    (:func:`kfgen.sim.castella.tb.fault_campaign`)."""
+    out, p, man = core("castella")
+    ys = scenario_codes(p, 1, seed=5)[0, :10]
+    tids = np.zeros(ys.size, dtype=np.int64)
+    rs = np.zeros(ys.size, dtype=bool)
+    rs[0] = True
+    expected, _ = expected_words(p, man, tids, ys, rs)
+    run_castella(out, p.name, tids, ys, rs, expected=expected, gap=0.2, stall=0.2, seed=sequences,
+                 build_dir=out / "sim_build", cache_dir=VERILATOR_CACHE, name=f"campaign_{sequences}",
+                 test="fault_campaign", env={"KFGEN_TB_SEQUENCES": str(sequences)})

@@ -105,3 +105,19 @@ def test_cocotb_configurations(request, build_root, args):
     assert rc == 0 and not messages, "\n".join(messages)
     model = build_ukf_core(out, top, VERILATOR_CACHE)
     run_ukf(model, out, top, ["iterations", "errors"], "all", module=TB)
+
+
+#: Fault campaign sequences (:mod:`kfgen.sim.campaign`): make test runs the first, make
+#: test-full the second.
+CAMPAIGN = [pytest.param(100, id="100"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("imm_core")
+@pytest.mark.parametrize("sequences", CAMPAIGN)
+def test_fault_campaign(rtl, sim, sequences):
+    """Seeded random bus traffic, starts, soft and bus resets, each sequence followed by a
+    clean iteration against the golden model, on the small core's build (calm: no per-clock
+    monitor, the campaign checks every response itself)."""
+    run_ukf(sim, rtl, "imm_small", ["fault_campaign"], f"campaign_{sequences}", module=TB,
+            env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})

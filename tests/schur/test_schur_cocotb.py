@@ -100,3 +100,21 @@ def test_schur_more_configurations(build_root):
     binary16, binary64, and d = 3 in e6m11 with a 4-cycle divider, in one build."""
     for top, (man, rec) in _run(build_root, "schur_more", scale=3).items():
         _check_rates(man, rec)
+
+
+#: Fault campaign sequences: make test runs the first, make test-full the second.
+CAMPAIGN = [pytest.param(200, id="200"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+
+
+@pytest.mark.xdist_group("schur_default")
+@pytest.mark.parametrize("sequences", CAMPAIGN)
+def test_schur_fault_campaign(build_root, sequences):
+    """The default unit: random traffic cut by resets at random cycles, each sequence followed
+    by a clean run of 8 matrices (4 calm: exact latency and interval) against the golden model
+    (:func:`kfgen.sim.schur.tb.fault_campaign`)."""
+    out, man = _generate(build_root, "schur")
+    p = SchurParams(**man["parameters"])
+    matrices = stimulus(p.fmt, p.d, 8, np.random.default_rng(sequences))
+    run_schur_group(build_root / "schur" / f"campaign_{sequences}", {"schur": (out, "schur", matrices)},
+                    calm=4, gap=0.2, stall=0.5, seed=sequences, name="schur_default", cache_dir=VERILATOR_CACHE,
+                    test="fault_campaign", env={"KFGEN_TB_SEQUENCES": str(sequences)})

@@ -181,3 +181,19 @@ def test_two_word_elements_in_amaranth():
     sim.add_clock(1e-8)
     sim.add_testbench(tb)
     sim.run()
+
+
+#: Fault campaign sequences (:mod:`kfgen.sim.campaign`): make test runs the first, make
+#: test-full the second.
+CAMPAIGN = [pytest.param(100, id="100"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("ukf_core")
+@pytest.mark.parametrize("sequences", CAMPAIGN)
+def test_fault_campaign(rtl, sim, sequences):
+    """Seeded random bus traffic, starts, soft and bus resets, each sequence followed by a
+    clean iteration against the golden model, on the small core's build (calm: no per-clock
+    monitor, the campaign checks every response itself)."""
+    run_ukf(sim, rtl, TOP, ["fault_campaign"], f"campaign_{sequences}",
+            env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})
