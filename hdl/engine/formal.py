@@ -116,8 +116,11 @@ class MapProperties(Elaboratable):
     ``engine`` the :class:`EngineModel` behind ``back``. Only for a core whose ``busy`` is the
     engine's (no stream ports, no prologue step), one bus word a buffer element."""
 
-    def __init__(self, back: Backend, engine: EngineModel, rmap, width: int):
+    GROUPS = ("rules", "model")
+
+    def __init__(self, back: Backend, engine: EngineModel, rmap, width: int, groups=GROUPS):
         self._back, self._eng, self._map, self._width = back, engine, rmap, width
+        self._groups = frozenset(groups)
         self.decode = _Decode(rmap)
 
     def write_refused(self, word, strb, wdata, busy):
@@ -133,6 +136,8 @@ class MapProperties(Elaboratable):
 
     def elaborate(self, platform):
         m = Module()
+        rules = Assert if "rules" in self._groups else (lambda cond, message=None: [])
+        modelled = Assert if "model" in self._groups else (lambda cond, message=None: [])
         bus, eng, rmap, d = self._back.bus, self._eng, self._map, self.decode
         busy = eng.busy
         ctrl, status = rmap["CTRL"], rmap["STATUS"]
@@ -145,14 +150,14 @@ class MapProperties(Elaboratable):
 
         # ---------------------------------------------------------------- writes
         refused = self.write_refused(bus.w_addr, ws, wd, busy)
-        m.d.comb += Assert(~bus.w_en | (bus.w_err == refused), "w_err_as_the_map_says")
+        m.d.comb += rules(~bus.w_en | (bus.w_err == refused), "w_err_as_the_map_says")
         base = self._map.buffer_base // 4
         takes = bus.w_en & d.memory(bus.w_addr, "rw") & ~busy & (ws == 0xF)
         m.d.comb += [
-            Assert(eng.mem_we == takes, "buffer_written_exactly_by_okay_whole_writes"),
-            Assert(~takes | ((eng.mem_waddr == bus.w_addr - base) & (eng.mem_wdata == wd[:self._width])),
+            rules(eng.mem_we == takes, "buffer_written_exactly_by_okay_whole_writes"),
+            rules(~takes | ((eng.mem_waddr == bus.w_addr - base) & (eng.mem_wdata == wd[:self._width])),
                    "buffer_write_element_and_value"),
-            Assert(eng.halt == reset, "reset_exactly_under_strobe"),
+            rules(eng.halt == reset, "reset_exactly_under_strobe"),
         ]
         named = Const(1)
         step_value = Const(0)
@@ -161,9 +166,9 @@ class MapProperties(Elaboratable):
             values = [v.value for v in f_step.values]
             named = (step_value >= values[0]) & (step_value <= values[-1])
         starts = to_ctrl & wd[f_start.lsb] & ~wd[f_reset.lsb] & ~busy & named
-        m.d.comb += Assert((eng.start & ~eng.busy) == starts, "start_exactly_under_strobe_while_idle")
+        m.d.comb += rules((eng.start & ~eng.busy) == starts, "start_exactly_under_strobe_while_idle")
         if f_step is not None:
-            m.d.comb += Assert(~starts | (eng.step == step_value - f_step.values[0].value),
+            m.d.comb += rules(~starts | (eng.step == step_value - f_step.values[0].value),
                                "start_names_the_step")
 
         # ---------------------------------------------------------------- the map's model
@@ -204,7 +209,7 @@ class MapProperties(Elaboratable):
             words[irq_reg.offset // 4] = enable_word
             irq_model = Signal()
             m.d.sync += irq_model.eq(~reset & Cat(seen[e] & enable[e] for e in _EVENTS).any())
-            m.d.comb += Assert(self._back.irq == irq_model, "irq_is_the_enabled_events")
+            m.d.comb += modelled(self._back.irq == irq_model, "irq_is_the_enabled_events")
             m.d.comb += Cover(self._back.irq, "cover_irq")
 
         # ---------------------------------------------------------------- reads
@@ -214,7 +219,7 @@ class MapProperties(Elaboratable):
         for word, value in words.items():
             expect_word = Mux(bus.r_addr == word, value, expect_word)
             is_modelled = is_modelled | (bus.r_addr == word)
-        m.d.comb += Assert(~bus.r_wait | ~d.any_reg(bus.r_addr), "register_reads_never_wait")
+        m.d.comb += rules(~bus.r_wait | ~d.any_reg(bus.r_addr), "register_reads_never_wait")
         line = [(Signal(name=f"read{i}_valid"), Signal(name=f"read{i}_err"), Signal(name=f"read{i}_known"),
                  Signal(32, name=f"read{i}_word")) for i in range(BUS_READ_LATENCY)]
         m.d.sync += [line[0][0].eq(bus.r_en), line[0][1].eq(expect_err), line[0][2].eq(is_modelled),
@@ -223,8 +228,8 @@ class MapProperties(Elaboratable):
             m.d.sync += [x.eq(y) for x, y in zip(b, a)]
         valid, err, known, word = line[-1]
         m.d.comb += [
-            Assert(~valid | (bus.r_err == err), "r_err_as_the_map_says"),
-            Assert(~(valid & known) | (bus.r_data == word), "registers_read_as_the_map_model_says"),
+            rules(~valid | (bus.r_err == err), "r_err_as_the_map_says"),
+            modelled(~(valid & known) | (bus.r_data == word), "registers_read_as_the_map_model_says"),
         ]
         # covers: each STATUS bit read as 1, a refused write, a start, a reset
         status_read = _read_of(m, bus, status.offset // 4)
@@ -251,9 +256,10 @@ class EngineMapHarness(Elaboratable):
     and :class:`MapProperties`. ``slave_cls`` and ``backend_cls`` may be mutants."""
 
     def __init__(self, params, rmap, step_names, size, *, slave_cls=Axi4Slave, backend_cls=Backend,
-                 groups=Axi4Properties.GROUPS):
+                 groups=Axi4Properties.GROUPS, map_groups=MapProperties.GROUPS):
         self._p, self._map, self._names, self._size = params, rmap, step_names, size
         self._slave_cls, self._backend_cls, self._groups = slave_cls, backend_cls, groups
+        self._map_groups = map_groups
 
     def elaborate(self, platform):
         m = Module()
@@ -266,7 +272,7 @@ class EngineMapHarness(Elaboratable):
         wiring.connect(m, front.bus, back.bus)
         drive_any(m, front, axi4_slave_members(aw, BUS_ID_WIDTH))
         m.d.comb += Assume(ResetSignal() == 0)
-        m.submodules.map = props = MapProperties(back, eng, self._map, width)
+        m.submodules.map = props = MapProperties(back, eng, self._map, width, self._map_groups)
         m.submodules.axi = Axi4Properties(
             front, aw, BUS_ID_WIDTH, groups=self._groups,
             read_ok=lambda w: props.decode.any_reg(w) | props.decode.memory(w),
@@ -285,7 +291,8 @@ class EngineStreamHarness(Elaboratable):
     rules are :class:`EngineMapHarness`'s)."""
 
     def __init__(self, params, rmap, step_names, size, stream, prologue, *, backend_cls=Backend,
-                 step_bound: int = 3):
+                 step_bound: int = 3, count: bool = True):
+        self._count = count  # False: the transmitter rules alone
         self._p, self._map, self._names, self._size = params, rmap, step_names, size
         self._stream, self._prologue, self._cls, self._steps = stream, prologue, backend_cls, step_bound
 
@@ -309,6 +316,8 @@ class EngineStreamHarness(Elaboratable):
         m.submodules.m_axis = StreamProperties(back.m_axis_tvalid, back.m_axis_tready,
                                                Cat(back.m_axis_tdata, back.m_axis_tuser), "out", "m_axis",
                                                reset=soft_reset)
+        if not self._count:
+            return m
         steps = 2 if self._prologue is not None else 1
         m.submodules.count = TransferCount(
             back.s_axis_tvalid & back.s_axis_tready, back.m_axis_tvalid & back.m_axis_tready,
