@@ -44,7 +44,7 @@ RUN_HERE = {
 PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"
 
 #: Make targets (the Makefile must have them).
-MAKE = {"make verilog", "make test"}
+MAKE = {"make verilog", "make test", "make formal"}
 
 #: Run by another test: command -> "path::test" (the test must exist). The default UKF, IMM
 #: and Schur cores are `make verilog`'s, which test_cores generates whole (3-5 s each).

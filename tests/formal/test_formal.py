@@ -34,3 +34,18 @@ def test_mutant_text_must_exist():
     bad = formal.Mutant("gone", "kfgen.hdl.bus.axi4", "no such text", "x", "axi4_small_lat1", "")
     with pytest.raises(RuntimeError, match="must occur exactly once"):
         formal.mutated(bad)
+
+
+def test_docs_name_every_proof_and_mutant():
+    """docs/formal.md's tables list every proof (with its method and depth) and every mutant."""
+    from helpers import ROOT
+
+    text = (ROOT / "docs" / "formal.md").read_text()
+    method = {"bmc": "BMC", "prove": "k-induction", "cover": "cover"}
+    for p in formal.proofs():
+        row = next((line for line in text.splitlines() if line.startswith(f"| `{p.name}` |")), None)
+        assert row, f"docs/formal.md has no row for proof {p.name}"
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[3:6] == [method[p.mode], str(p.depth), "full" if p.full else "test"], (p.name, cells)
+    for mu in formal.mutants():
+        assert f"| `{mu.name}` |" in text, f"docs/formal.md has no row for mutant {mu.name}"

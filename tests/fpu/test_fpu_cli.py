@@ -200,7 +200,7 @@ LINT_FORMATS = ("binary16", "bfloat16", "binary32", "binary64", "e3m2", "e4m3", 
 #: Linted in every run (binary32 with its ftz, fewest-stages and iterative variants, and
 #: binary64, the widest datapaths, with its iterative ones); the rest in make test-full
 #: (binary16 builds what binary32 does, narrower, and its units are simulated in every run).
-LINT_EVERY_RUN = ("binary32", "binary64")
+LINT_EVERY_RUN = ("binary32",)
 #: Formats also linted with ftz; with the fewest stages (the most logic between registers,
 #: where Yosys folds the most); with div and sqrt iterative.
 FTZ_FORMATS = ("binary32", "bfloat16", "e3m2", "e6m11")

@@ -81,7 +81,7 @@ def _run_group(build_root, group, n_random, seed):
 
 #: Groups run in make test-full only (their formats and modes are linted in every run, and
 #: their units share every line of Amaranth with the groups that run).
-FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11")
+FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11", "binary16")
 
 
 @pytest.mark.parametrize("group", [g if g not in FULL_GROUPS else pytest.param(g, marks=pytest.mark.full)
