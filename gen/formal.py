@@ -58,14 +58,20 @@ class Proof:
 @dataclass(frozen=True)
 class Mutant:
     """A planted bug: in module ``module``, ``old`` (which must occur exactly once) becomes
-    ``new``; proof ``proof`` must fail, at an assertion whose name contains ``expect``."""
+    ``new``; proof ``proof`` must fail, at an assertion whose name contains ``expect`` (or one
+    of them, a tuple: the property the bug breaks, or the checker's statement of the slave's
+    state, which may see it a cycle sooner)."""
 
     name: str
     module: str
     old: str
     new: str
     proof: str
-    expect: str
+    expect: str | tuple
+
+    def caught(self, result) -> bool:
+        names = (self.expect,) if isinstance(self.expect, str) else self.expect
+        return result.status == "FAIL" and any(n in f for f in result.failed for n in names)
 
 
 @dataclass
@@ -234,8 +240,15 @@ PROOFS = [
           full=True, script=("cutpoint t:$mul",)),
     Proof("axi4_small_handshake_ind", "B and R hold VALID and payload until READY", _axi4(2, ("handshake",)),
           "prove", 4, full=True),
-    Proof("ukf_map_rules_ind", "the UKF map's response, write, start and reset rules, and the AXI4 handshakes",
-          _ukf_map(("handshake",), ("rules",)), "prove", 4, full=True),
+    Proof("axi4_small_reads_ind", "R beats ARLEN + 1 with RLAST on the last, RID = ARID, in order, RRESP as the "
+          "map says, the R handshake", _axi4(1, ("handshake", "reads")), "prove", 6, full=True),
+    Proof("axi4_small_lat2_ind", "as the two above, back-end read latency 2",
+          _axi4(2, ("handshake", "reads", "writes")), "prove", 7, full=True),
+    Proof("axi4_small_writes_ind", "W after its AW, one B per burst with BID = AWID, BRESP SLVERR iff a beat "
+          "erred, the B handshake", _axi4(1, ("handshake", "writes")), "prove", 4, full=True),
+    Proof("ukf_map_rules_ind", "the UKF map's response, write, start and reset rules, and the AXI4 slave's "
+          "handshake, read and write rules with the map's responses", _ukf_map(("handshake", "reads", "writes"), ("rules",)),
+          "prove", 7, full=True),
     Proof("castella_m_axis_ind", "Castella's m_axis holds TVALID and its payload until TREADY",
           lambda mutated: _castella(mutated, count=False), "prove", 4, full=True, script=("cutpoint t:$mul",)),
     Proof("ukf_m_axis_ind", "an on-chip UKF's m_axis holds TVALID and its payload until TREADY (or CTRL.reset)",
@@ -245,13 +258,13 @@ PROOFS = [
 #: Planted bugs each proof must catch.
 MUTANTS = [
     Mutant("rlast_early", "kfgen.hdl.bus.axi4", "p[0].last.eq(h_left == 0)", "p[0].last.eq(h_left <= 1)",
-           "axi4_small_lat1", "r_last"),
+           "axi4_small_lat1", ("r_last", "r_state")),
     Mutant("bid_from_arid", "kfgen.hdl.bus.axi4", "self.s_axi_bid.eq(w_id)", "self.s_axi_bid.eq(r_id)",
            "axi4_small_lat1", "b_id"),
     Mutant("bvalid_dropped", "kfgen.hdl.bus.axi4", "with m.If(self.s_axi_bvalid & self.s_axi_bready):",
            "with m.If(self.s_axi_bvalid):", "axi4_small_lat1", "b_channel"),
     Mutant("page_crossing_accepted", "kfgen.hdl.bus.axi4", "| ((burst == Burst.INCR) & crosses))", ")",
-           "axi4_small_lat1", "resp"),
+           "axi4_small_lat1", ("resp", "r_state")),
     Mutant("castella_output_dropped", "kfgen.hdl.castella.core", "ofifo.r_en.eq(self.m_axis_tready)",
            "ofifo.r_en.eq(1)", "castella_streams", "m_axis"),
     Mutant("castella_taken_without_ready", "kfgen.hdl.castella.core",
@@ -273,7 +286,7 @@ MUTANTS = [
     Mutant("err_busy_not_set", "kfgen.hdl.engine.core", '"err_busy": refused_start}', '"err_busy": Const(0, 1)}',
            "ukf_map", "registers_read"),
     Mutant("w1c_without_strobe", "kfgen.hdl.engine.core", 'clear = {e: byte0 & is_reg["STATUS"]',
-           'clear = {e: bus.w_en & is_reg["STATUS"]', "ukf_map", "registers_read"),
+           'clear = {e: bus.w_en & is_reg["STATUS"]', "ukf_map", ("registers_read", "irq")),
     Mutant("w1p_without_strobe", "kfgen.hdl.engine.core", 'do_start = byte0 & is_reg["CTRL"]',
            'do_start = bus.w_en & is_reg["CTRL"]', "ukf_map", "start"),
 ]
@@ -317,7 +330,7 @@ def main(argv=None) -> int:
             if not mu.name.startswith(args.only) and not mu.proof.startswith(args.only):
                 continue
             r = run(by_name[mu.proof], work / f"mutant_{mu.name}", {mu.module: mutated(mu)})
-            caught = r.status == "FAIL" and any(mu.expect in f for f in r.failed)
+            caught = mu.caught(r)
             print(f"mutant {mu.name:33s} {mu.proof:20s} {'caught' if caught else 'MISSED'}"
                   f"  ({r.status}, {', '.join(r.failed) or '-'}, {r.seconds:.1f} s)", flush=True)
             bad += not caught

@@ -390,4 +390,17 @@ class Axi4Slave(wiring.Component):
                              self.s_axi_bresp.eq(Mux(w_erred | beat_err, Resp.SLVERR, Resp.OKAY))]
             with m.Else():
                 m.d.sync += [w_left.eq(w_left - 1), w_addr.eq(Mux(w_fixed, w_addr, w_addr + 1))]
+        self._formal_state = SimpleNamespace(
+            w_active=w_active, w_addr=w_addr, w_left=w_left, w_bad=w_bad, w_fixed=w_fixed, w_id=w_id,
+            w_erred=w_erred, r_active=r_active, r_addr=r_addr, r_left=r_left, r_id=r_id, r_bad=r_bad,
+            r_fixed=r_fixed, pending=p, skid=skid, skid_count=s_count)
         return m
+
+    @property
+    def formal_state(self) -> SimpleNamespace:
+        """The channels' registers of the last elaboration (write: ``w_active``, ``w_addr``,
+        ``w_left``, ``w_bad``, ``w_fixed``, ``w_id``, ``w_erred``; read: ``r_*`` alike, the
+        ``pending`` back-end reads, oldest last, and the ``skid`` queue of ``skid_count``
+        answers), for the formal proofs' induction
+        (:class:`kfgen.hdl.bus.formal.Axi4Properties`); ``None`` before one."""
+        return getattr(self, "_formal_state", None)

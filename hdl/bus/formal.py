@@ -19,7 +19,7 @@ ports.
 from __future__ import annotations
 
 from amaranth.asserts import AnySeq
-from amaranth.hdl import Assert, Assume, Cat, Cover, Elaboratable, Module, Mux, ResetSignal, Signal, unsigned
+from amaranth.hdl import Assert, Assume, Cat, Const, Cover, Elaboratable, Fragment, Module, Mux, ResetSignal, Signal, unsigned
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 
@@ -101,13 +101,18 @@ class Axi4Properties(Elaboratable):
 
     Covered: B OKAY and SLVERR, R OKAY and SLVERR, a multi-beat INCR read and write burst,
     a FIXED read burst, back-to-back R beats.
+
+    ``groups`` selects the assertions: ``handshake``, ``reads`` (R's rules), ``writes`` (W's
+    and B's), ``liveness``. ``state`` (the slave's write-channel registers, its
+    :attr:`~kfgen.hdl.bus.axi4.Axi4Slave.formal_state` after elaboration) adds what they must
+    hold given the bursts seen, which makes the write channel's rules provable by k-induction.
     """
 
-    GROUPS = ("handshake", "bursts", "responses", "liveness")
+    GROUPS = ("handshake", "reads", "writes", "liveness")
 
     def __init__(self, port, addr_width: int, id_width: int, *, depth: int = 4, read_ok=None,
                  write_ok=None, r_bound: int = 8, w_bound: int = 3, b_bound: int = 2,
-                 groups=GROUPS):
+                 groups=GROUPS, state=None):
         if not set(groups) <= set(self.GROUPS):
             raise ValueError(f"groups must be some of {self.GROUPS}, not {groups!r}")
         self._groups = frozenset(groups)
@@ -118,12 +123,65 @@ class Axi4Properties(Elaboratable):
         self._read_ok = read_ok
         self._write_ok = write_ok
         self._bounds = (r_bound, w_bound, b_bound)
+        self._state = state  # the slave's write-channel registers, to tie the checker to them
 
     def _checker(self, group):
         """``Assert`` for a group this checker proves, else a statement that checks nothing."""
         if group in self._groups:
             return Assert
         return lambda cond, message=None, src_loc_at=0: []
+
+    def _read_state(self, m, reads, arq, r_beat):
+        """What the slave's read registers must hold, given the bursts the checker has seen:
+        the beats in flight (the R register, the skid queue, the back-end reads pending, oldest
+        first) and the burst being issued, burst by burst against the checker's queue."""
+        s, st, waw = self._sig, self._state, self._aw - 2
+        slots = [dict(present=s("rvalid"), last=s("rlast"), id=s("rid"), resp=s("rresp"), data=s("rdata"))]
+        slots += [dict(present=st.skid_count > i, last=e.last, id=e.id, resp=e.resp, data=e.data)
+                  for i, e in enumerate(st.skid)]
+        slots += [dict(present=q.valid, last=q.last, id=q.id, bad=q.bad) for q in reversed(st.pending)]
+
+        def entry(index, field):
+            value = getattr(arq.slots[0], field)
+            for i, slot in enumerate(arq.slots[1:], 1):
+                value = Mux(index == i, getattr(slot, field), value)
+            return value
+
+        width = range(len(slots) + arq.depth + 1)
+        lasts = Const(0, width)  # bursts ended before this slot
+        m.d.comb += [reads((st.skid_count == 0) | s("rvalid"), "r_state_skid_behind_r"),
+                     reads(Mux(arq.empty, r_beat == 0, r_beat <= arq.head.len), "r_state_beat_count"),
+                     # the slave issues a read only when its answer will find room: at most
+                     # read latency + 1 answers in flight, the skid queue at most its depth
+                     reads(sum((q.valid for q in st.pending), s("rvalid") + st.skid_count)
+                           <= len(st.pending) + 1, "r_state_room_for_every_answer")]
+        bursts = []  # each slot's burst: its index in the checker's queue
+        for k, slot in enumerate(slots):
+            before = Signal(width, name=f"r_slot{k}_burst")
+            pos = Signal(9, name=f"r_slot{k}_beat")
+            m.d.comb += before.eq(lasts)
+            same = [other["present"] & (b == before) for other, b in zip(slots[:k], bursts)]
+            m.d.comb += pos.eq(Mux(before == 0, r_beat, 0) + sum(same, Const(0, 9)))
+            bursts.append(before)
+            addr = Mux(entry(before, "fixed"), entry(before, "addr"), (entry(before, "addr") + pos)[:waw])
+            bad = entry(before, "bad")
+            checks = [before < arq.count, slot["id"] == entry(before, "id"),
+                      slot["last"] == (pos == entry(before, "len"))]
+            if "resp" in slot:
+                ok = self._read_ok(addr) if self._read_ok else Const(1)
+                checks += [slot["resp"] == Mux(bad | ~ok, Resp.SLVERR, Resp.OKAY), ~bad | (slot["data"] == 0)]
+            else:
+                checks += [slot["bad"] == bad]
+            m.d.comb += reads(~slot["present"] | Cat(checks).all(), f"r_state_slot{k}_is_its_burst")
+            lasts = lasts + (slot["present"] & slot["last"])
+        issued = sum([slot["present"] & (b == lasts) for slot, b in zip(slots, bursts)], Const(0, 9))
+        issued = issued + Mux(lasts == 0, r_beat, 0)
+        active = Cat(arq.count == lasts + 1, st.r_id == entry(lasts, "id"),
+                     st.r_left + issued == entry(lasts, "len"), st.r_bad == entry(lasts, "bad"),
+                     st.r_fixed == entry(lasts, "fixed"),
+                     st.r_addr == Mux(entry(lasts, "fixed"), entry(lasts, "addr"),
+                                      (entry(lasts, "addr") + issued)[:waw])).all()
+        m.d.comb += reads(Mux(st.r_active, active, arq.count == lasts), "r_state_the_burst_being_issued")
 
     def _sig(self, name):
         return getattr(self._port, f"s_axi_{name}")
@@ -152,7 +210,7 @@ class Axi4Properties(Elaboratable):
         hold_rule(m, s("bvalid"), s("bready"), Cat(s("bid"), s("bresp")), check, "b_channel")
         hold_rule(m, s("rvalid"), s("rready"), Cat(s("rid"), s("rdata"), s("rresp"), s("rlast")),
                   check, "r_channel")
-        bursts, responses = self._checker("bursts"), self._checker("responses")
+        reads, writes = self._checker("reads"), self._checker("writes")
 
         burst = data.StructLayout({"id": idw, "len": 8, "addr": waw, "bad": 1, "fixed": 1})
         w_hs = s("wvalid") & s("wready")
@@ -173,7 +231,7 @@ class Axi4Properties(Elaboratable):
             return Mux(head.fixed, head.addr, (head.addr + n)[:waw])
 
         # ------------------------------------------------------------ reads
-        arq = _Queue(m, "arq", burst, self._depth, bursts)
+        arq = _Queue(m, "arq", burst, self._depth, reads)
         accepted(arq, "ar")
         r_beat = Signal(8)
         r_addr = Signal(waw)
@@ -184,17 +242,20 @@ class Axi4Properties(Elaboratable):
                        Mux(self._read_ok(r_addr), Resp.OKAY, Resp.SLVERR) if self._read_ok else Resp.OKAY)
         with m.If(s("rvalid")):
             m.d.comb += [
-                bursts(~arq.empty, "r_only_for_a_request"),
-                bursts(s("rid") == arq.head.id, "r_id_is_arid_in_order"),
-                bursts(s("rlast") == (r_beat == arq.head.len), "r_last_on_beat_arlen_plus_1"),
-                responses(s("rresp") == r_expect, "r_resp_as_the_map_says"),
-                responses(~arq.head.bad | (s("rdata") == 0), "r_refused_burst_reads_0"),
+                reads(~arq.empty, "r_only_for_a_request"),
+                reads(s("rid") == arq.head.id, "r_id_is_arid_in_order"),
+                reads(s("rlast") == (r_beat == arq.head.len), "r_last_on_beat_arlen_plus_1"),
+                reads(s("rresp") == r_expect, "r_resp_as_the_map_says"),
+                reads(~arq.head.bad | (s("rdata") == 0), "r_refused_burst_reads_0"),
             ]
 
+        if self._state is not None:
+            self._read_state(m, reads, arq, r_beat)
+
         # ------------------------------------------------------------ writes
-        awq = _Queue(m, "awq", burst, self._depth, bursts)
+        awq = _Queue(m, "awq", burst, self._depth, writes)
         accepted(awq, "aw")
-        bq = _Queue(m, "bq", data.StructLayout({"id": idw, "err": 1}), self._depth, bursts)
+        bq = _Queue(m, "bq", data.StructLayout({"id": idw, "err": 1}), self._depth, writes)
         w_beat = Signal(8)
         w_erred = Signal()
         w_addr = Signal(waw)
@@ -204,7 +265,7 @@ class Axi4Properties(Elaboratable):
             beat_err = beat_err | ~self._write_ok(w_addr, s("wstrb"), s("wdata"))
         last = w_beat == awq.head.len
         m.d.comb += [
-            bursts(~w_hs | ~awq.empty, "w_only_after_its_aw"),
+            writes(~w_hs | ~awq.empty, "w_only_after_its_aw"),
             awq.pop.eq(w_hs & last),
             bq.push.eq(w_hs & last), bq.value.id.eq(awq.head.id), bq.value.err.eq(w_erred | beat_err),
             bq.pop.eq(b_hs),
@@ -213,10 +274,24 @@ class Axi4Properties(Elaboratable):
             m.d.sync += [w_beat.eq(Mux(last, 0, w_beat + 1)), w_erred.eq(~last & (w_erred | beat_err))]
         with m.If(s("bvalid")):
             m.d.comb += [
-                bursts(~bq.empty, "b_only_after_a_whole_burst"),
-                bursts(s("bid") == bq.head.id, "b_id_is_awid_in_order"),
-                responses(s("bresp") == Mux(bq.head.err, Resp.SLVERR, Resp.OKAY),
+                writes(~bq.empty, "b_only_after_a_whole_burst"),
+                writes(s("bid") == bq.head.id, "b_id_is_awid_in_order"),
+                writes(s("bresp") == Mux(bq.head.err, Resp.SLVERR, Resp.OKAY),
                           "b_resp_slverr_iff_a_beat_erred"),
+            ]
+        if self._state is not None:
+            # what the slave's write registers must hold, given the bursts the checker has
+            # seen (the strengthening k-induction needs: with it the write channel's
+            # properties hold in every reachable state, not only to a depth)
+            st = self._state
+            m.d.comb += [
+                writes(awq.count == st.w_active, "w_state_one_burst_in_progress"),
+                writes(bq.count == s("bvalid"), "w_state_one_b_pending"),
+                writes(st.w_active | ((w_beat == 0) & ~w_erred), "w_state_idle_counters"),
+                writes(~st.w_active | ((st.w_id == awq.head.id) & (st.w_left + w_beat == awq.head.len)
+                                       & (st.w_addr == w_addr) & (st.w_bad == awq.head.bad)
+                                       & (st.w_fixed == awq.head.fixed) & (st.w_erred == w_erred)),
+                       "w_state_is_the_burst"),
             ]
 
         # ------------------------------------------------------------ bounded liveness
@@ -389,7 +464,8 @@ class SlaveHarness(Elaboratable):
     def elaborate(self, platform):
         from .axi4 import axi4_slave_members
         m = Module()
-        m.submodules.dut = dut = self._cls(self._aw, self._idw, self._lat)
+        dut = self._cls(self._aw, self._idw, self._lat)
+        m.submodules.dut = Fragment.get(dut, platform)  # elaborated here: its state is visible
         m.submodules.back = back = SmallMap(self._aw, self._lat)
         wiring.connect(m, dut.bus, back.bus)
         drive_any(m, dut, axi4_slave_members(self._aw, self._idw))
@@ -401,7 +477,7 @@ class SlaveHarness(Elaboratable):
         m.submodules.props = Axi4Properties(
             dut, self._aw, self._idw, read_ok=SmallMap.readable,
             write_ok=lambda word, strb, wdata: SmallMap.writable(word), groups=self._groups,
-            r_bound=self._lat + 5)
+            r_bound=self._lat + 5, state=dut.formal_state)
         return m
 
 

@@ -28,7 +28,7 @@ from the back end's decoder:
 from __future__ import annotations
 
 from amaranth.asserts import AnySeq
-from amaranth.hdl import Assert, Assume, Cat, Const, Cover, Elaboratable, Module, Mux, ResetSignal, Signal
+from amaranth.hdl import Assert, Assume, Cat, Const, Cover, Elaboratable, Fragment, Module, Mux, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -267,7 +267,8 @@ class EngineMapHarness(Elaboratable):
         if self._p.fmt.width > 32:
             raise ValueError("the map harness takes one bus word an element (a format of at most 32 bits)")
         m.submodules.engine = eng = EngineModel(self._names, self._size, width)
-        m.submodules.front = front = self._slave_cls(aw, BUS_ID_WIDTH, BUS_READ_LATENCY)
+        front = self._slave_cls(aw, BUS_ID_WIDTH, BUS_READ_LATENCY)
+        m.submodules.front = Fragment.get(front, platform)  # elaborated here: its state is visible
         m.submodules.back = back = self._backend_cls(self._p, eng, self._map)
         wiring.connect(m, front.bus, back.bus)
         drive_any(m, front, axi4_slave_members(aw, BUS_ID_WIDTH))
@@ -277,7 +278,7 @@ class EngineMapHarness(Elaboratable):
             front, aw, BUS_ID_WIDTH, groups=self._groups,
             read_ok=lambda w: props.decode.any_reg(w) | props.decode.memory(w),
             write_ok=lambda w, strb, wdata: ~props.write_refused(w, strb, wdata, eng.busy),
-            r_bound=BUS_READ_LATENCY + 2 + 4)
+            r_bound=BUS_READ_LATENCY + 2 + 4, state=front.formal_state)
         return m
 
 

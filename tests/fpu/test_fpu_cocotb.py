@@ -79,8 +79,8 @@ def _run_group(build_root, group, n_random, seed):
         for prefix, (op, cpo) in units.items()}, seed)
 
 
-#: Groups run in make test-full only (their formats and modes are linted in every run, and
-#: their units share every line of Amaranth with the groups that run).
+#: Groups run in make test-full only (their units share every line of Amaranth with the
+#: groups that run, and Amaranth's simulator holds them to the reference in every run).
 FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11", "binary16")
 
 

@@ -94,7 +94,7 @@ def test_nanosat_c_processor(nanosat_core, nanosat_python):
 
 @pytest.mark.verilator
 @pytest.mark.parametrize("processor,beats,wait", [
-    ("python_processor", "single", "poll"),
+    pytest.param("python_processor", "single", "poll", marks=pytest.mark.full),
     # the C driver with bursts and irq runs on the nanosatellite in every run
     pytest.param("c_processor", "burst", "irq", marks=pytest.mark.full)])
 @pytest.mark.xdist_group("cosim_tracker")
