@@ -454,11 +454,12 @@ class SlaveHarness(Elaboratable):
     """The AXI4 slave front end (``slave_cls``, :class:`~kfgen.hdl.bus.axi4.Axi4Slave` or a
     mutant of it) on :class:`SmallMap`, its master free (``AnySeq``) under the AXI4 rules,
     the back end's read waits free but never more than two cycles in a row, and the slave's
-    properties (``groups`` of :class:`Axi4Properties`) checked."""
+    properties (``groups`` of :class:`Axi4Properties`) checked; with ``state``, also what its
+    registers must hold (for k-induction; BMC needs it not)."""
 
     def __init__(self, slave_cls, read_latency: int = 1, groups=Axi4Properties.GROUPS,
-                 addr_width: int = 16, id_width: int = 2):
-        self._cls, self._lat, self._groups = slave_cls, read_latency, groups
+                 addr_width: int = 16, id_width: int = 2, state: bool = False):
+        self._cls, self._lat, self._groups, self._state = slave_cls, read_latency, groups, state
         self._aw, self._idw = addr_width, id_width
 
     def elaborate(self, platform):
@@ -477,7 +478,7 @@ class SlaveHarness(Elaboratable):
         m.submodules.props = Axi4Properties(
             dut, self._aw, self._idw, read_ok=SmallMap.readable,
             write_ok=lambda word, strb, wdata: SmallMap.writable(word), groups=self._groups,
-            r_bound=self._lat + 5, state=dut.formal_state)
+            r_bound=self._lat + 5, state=dut.formal_state if self._state else None)
         return m
 
 

@@ -256,10 +256,11 @@ class EngineMapHarness(Elaboratable):
     and :class:`MapProperties`. ``slave_cls`` and ``backend_cls`` may be mutants."""
 
     def __init__(self, params, rmap, step_names, size, *, slave_cls=Axi4Slave, backend_cls=Backend,
-                 groups=Axi4Properties.GROUPS, map_groups=MapProperties.GROUPS):
+                 groups=Axi4Properties.GROUPS, map_groups=MapProperties.GROUPS, state: bool = False):
         self._p, self._map, self._names, self._size = params, rmap, step_names, size
         self._slave_cls, self._backend_cls, self._groups = slave_cls, backend_cls, groups
         self._map_groups = map_groups
+        self._state = state  # the slave's registers stated too (for k-induction)
 
     def elaborate(self, platform):
         m = Module()
@@ -278,7 +279,7 @@ class EngineMapHarness(Elaboratable):
             front, aw, BUS_ID_WIDTH, groups=self._groups,
             read_ok=lambda w: props.decode.any_reg(w) | props.decode.memory(w),
             write_ok=lambda w, strb, wdata: ~props.write_refused(w, strb, wdata, eng.busy),
-            r_bound=BUS_READ_LATENCY + 2 + 4, state=front.formal_state)
+            r_bound=BUS_READ_LATENCY + 2 + 4, state=front.formal_state if self._state else None)
         return m
 
 

@@ -224,7 +224,7 @@ def test_monte_carlo_50_runs(core, scenario):
 
 
 #: Fault campaign sequences: make test runs the first, make test-full the second.
-CAMPAIGN = [pytest.param(200, id="200"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+CAMPAIGN = [pytest.param(100, id="100"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
 
 
 @pytest.mark.xdist_group("castella")

@@ -100,6 +100,7 @@ SMALL = {"ukf": ["--states", "2", "--observations", "1", "--process-noise", "1",
          "imm": ["--models", "2", "--states", "2", "--measurements", "1"]}
 
 
+@pytest.mark.full
 def test_wheel_generates_every_core(venv, tmp_path):
     from kfgen.gen.cores import discover
 

@@ -132,6 +132,7 @@ def test_model_exhaustive_16bit(fn, fmt):
     check_against_exact(fn, fmt, list(range(1 << 16)))
 
 
+@pytest.mark.full
 @pytest.mark.parametrize("fmt", ["binary16", "bfloat16"])
 def test_model_atan2_16bit(fmt):
     """Every word as y against x = 1 and x = -1 (atan over the whole range, and pi minus it),

@@ -197,9 +197,9 @@ def test_icarus_compiles(tmp_path, args):
 #: narrow exponent with a wide fraction, the reverse, and the widest.
 LINT_FORMATS = ("binary16", "bfloat16", "binary32", "binary64", "e3m2", "e4m3", "e5m5", "e6m6",
                 "e5m7", "e6m11", "e3m40", "e15m2", "e15m64")
-#: Linted in every run (binary32 with its ftz, fewest-stages and iterative variants, and
-#: binary64, the widest datapaths, with its iterative ones); the rest in make test-full
-#: (binary16 builds what binary32 does, narrower, and its units are simulated in every run).
+#: Linted in every run (binary32 with its ftz, fewest-stages and iterative variants); the
+#: rest in make test-full (binary16 builds what binary32 does, narrower; binary64 the same
+#: code wider, and its units are simulated in every run).
 LINT_EVERY_RUN = ("binary32",)
 #: Formats also linted with ftz; with the fewest stages (the most logic between registers,
 #: where Yosys folds the most); with div and sqrt iterative.

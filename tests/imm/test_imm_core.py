@@ -109,7 +109,7 @@ def test_cocotb_configurations(request, build_root, args):
 
 #: Fault campaign sequences (:mod:`kfgen.sim.campaign`): make test runs the first, make
 #: test-full the second.
-CAMPAIGN = [pytest.param(100, id="100"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+CAMPAIGN = [pytest.param(50, id="50"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
 
 
 @pytest.mark.verilator

@@ -80,6 +80,7 @@ def test_tracker_on_chip_golden(tracker):
     assert [op.unit for op in programs(p).iteration.ops].count("atan2") == p.N  # h on every point
 
 
+@pytest.mark.full
 @pytest.mark.verilator
 def test_tracker_on_chip_rtl(build_root):
     """The tracker core on chip (atan2 and hypot's square root on the engine's shared units)
