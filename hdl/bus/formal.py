@@ -4,8 +4,9 @@ These are checkers, not gateware of a core: each watches a component's ports and
 ``Assume`` statements for what its master (or stream source) must do, ``Assert`` statements for
 what the component must do, and ``Cover`` statements so that a vacuous proof (assumptions
 nothing can meet) shows up as an unreached cover. Everything here is written from the AXI4 and
-AXI4-Stream rules (ARM IHI 0022, IHI 0051), not from the slave's code: the two meet only at the
-ports.
+AXI4-Stream rules (ARM IHI 0022, IHI 0051), not from the slave's code: the two meet at the
+ports, except for the statement of the slave's registers that k-induction needs
+(``Axi4Properties(state=...)``), which says what they must hold given the bursts seen.
 
 - :class:`Axi4Properties`: the AXI4 slave's channels (handshakes, bursts, IDs, responses,
   per-beat response rules of the address map, bounded per-beat liveness).

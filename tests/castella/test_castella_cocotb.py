@@ -186,7 +186,7 @@ def test_many_tracks_random_order(core):
     run_checked(out, p, man, tids, ys, rs, gap=0.2, stall=0.2, seed=8, name="many")
 
 
-@pytest.mark.parametrize("top, lut", [("castella8_dsp", "castella8"),
+@pytest.mark.parametrize("top, lut", [pytest.param("castella8_dsp", "castella8", marks=pytest.mark.full),
                                       pytest.param("castella_w20_dsp", "castella_w20", marks=pytest.mark.full)])
 def test_dsp_multipliers_bit_exact(core, top, lut):
     """--multipliers dsp: every output word as the model's (so as the LUT core's), with gaps,
@@ -224,7 +224,7 @@ def test_monte_carlo_50_runs(core, scenario):
 
 
 #: Fault campaign sequences: make test runs the first, make test-full the second.
-CAMPAIGN = [pytest.param(100, id="100"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+CAMPAIGN = [pytest.param(40, id="40"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
 
 
 @pytest.mark.xdist_group("castella")

@@ -94,7 +94,7 @@ class Axi4TestTop(wiring.Component):
         return m
 
 
-@pytest.fixture(scope="module", params=[1, 2], ids=["latency1", "latency2"])
+@pytest.fixture(scope="module", params=[1, pytest.param(2, marks=pytest.mark.full)], ids=["latency1", "latency2"])
 def rtl(request, build_root):
     """The test top with a back end of read latency 1 and 2 (the UKF's and IMM's buffer)."""
     out = build_root / f"axi4_l{request.param}"

@@ -80,8 +80,9 @@ def _run_group(build_root, group, n_random, seed):
 
 
 #: Groups run in make test-full only (their units share every line of Amaranth with the
-#: groups that run, and Amaranth's simulator holds them to the reference in every run).
-FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11", "binary16")
+#: binary32 group that runs; the engine cores' RTL tests run iterative division and square
+#: root in every run).
+FULL_GROUPS = ("bfloat16", "binary32_ftz", "e6m11", "binary16", "binary64", "binary32_iter")
 
 
 @pytest.mark.parametrize("group", [g if g not in FULL_GROUPS else pytest.param(g, marks=pytest.mark.full)
@@ -100,6 +101,7 @@ def test_fpu_binary32_million(build_root):
     _run_group(build_root, "binary32", FULL_RANDOM, seed=2)
 
 
+@pytest.mark.full
 def test_fpu_conversion_sweeps(build_root):
     """i2f and f2i at every rounding and range boundary (:func:`conversion_sweep`), in
     binary16 (overflowing i2f), binary32 and binary64 (exact i2f, saturating f2i)."""

@@ -14,7 +14,7 @@ from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.run import build_ukf_core, run_ukf
 
-from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process
+from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
 
 TB = "kfgen.sim.imm.tb"
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]
@@ -107,17 +107,9 @@ def test_cocotb_configurations(request, build_root, args):
     run_ukf(model, out, top, ["iterations", "errors"], "all", module=TB)
 
 
-#: Fault campaign sequences (:mod:`kfgen.sim.campaign`): make test runs the first, make
-#: test-full the second.
-CAMPAIGN = [pytest.param(50, id="50"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
-
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("imm_core")
-@pytest.mark.parametrize("sequences", CAMPAIGN)
+@pytest.mark.parametrize("sequences", [ENGINE_CAMPAIGN[0], pytest.param(ENGINE_CAMPAIGN[1], marks=pytest.mark.full)])
 def test_fault_campaign(rtl, sim, sequences):
-    """Seeded random bus traffic, starts, soft and bus resets, each sequence followed by a
-    clean iteration against the golden model, on the small core's build (calm: no per-clock
-    monitor, the campaign checks every response itself)."""
-    run_ukf(sim, rtl, "imm_small", ["fault_campaign"], f"campaign_{sequences}", module=TB,
-            env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})
+    run_fault_campaign(sim, rtl, "imm_small", sequences, module=TB)

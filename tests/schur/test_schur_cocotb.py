@@ -103,7 +103,7 @@ def test_schur_more_configurations(build_root):
 
 
 #: Fault campaign sequences: make test runs the first, make test-full the second.
-CAMPAIGN = [pytest.param(50, id="50"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
+CAMPAIGN = [pytest.param(20, id="20"), pytest.param(10_000, id="10000", marks=pytest.mark.full)]
 
 
 @pytest.mark.xdist_group("schur_default")
