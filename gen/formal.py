@@ -225,7 +225,7 @@ PROOFS = [
     # cover, every stream transfer through its core
     Proof("axi4_small_lat1", "AXI4 slave on the small map, back-end read latency 1", _axi4(1), "bmc", 8),
     Proof("axi4_small_cover", "every response kind and burst kind reached", _axi4(1), "cover", 12),
-    Proof("ukf_map", "AXI4 slave and the UKF core's map, the engine free within its contract", _ukf_map(), "bmc", 7),
+    Proof("ukf_map", "AXI4 slave and the UKF core's map, the engine free within its contract", _ukf_map(), "bmc", 8),
     Proof("ukf_map_cover", "every STATUS bit read as 1, irq, refused writes, start, reset", _ukf_map(), "cover", 12),
     Proof("castella_streams", "Castella's s_axis/m_axis: transmitter rules, none lost or duplicated",
           _castella, "bmc", 40, full=True, script=("cutpoint t:$mul",)),
