@@ -224,16 +224,18 @@ PROOFS = [
     # make test: BMC deep enough for bursts of a few beats on both channels at once, every
     # cover, every stream transfer through its core
     Proof("axi4_small_lat1", "AXI4 slave on the small map, back-end read latency 1", _axi4(1), "bmc", 8),
-    Proof("axi4_small_cover", "every response kind and burst kind reached", _axi4(1), "cover", 12),
+    Proof("axi4_small_cover", "every response kind and burst kind reached", _axi4(1), "cover", 12, full=True),
     Proof("ukf_map", "AXI4 slave and the UKF core's map, the engine free within its contract", _ukf_map(), "bmc", 8),
-    Proof("ukf_map_cover", "every STATUS bit read as 1, irq, refused writes, start, reset", _ukf_map(), "cover", 12),
+    Proof("ukf_map_cover", "every STATUS bit read as 1, irq, refused writes, start, reset", _ukf_map(), "cover", 12,
+          full=True),
     Proof("castella_streams", "Castella's s_axis/m_axis: transmitter rules, none lost or duplicated",
           _castella, "bmc", 40, full=True, script=("cutpoint t:$mul",)),
     Proof("castella_streams_cover", "transfers in and out, after backpressure, two inside", _castella, "cover", 40,
           full=True, script=("cutpoint t:$mul",)),
     Proof("ukf_streams", "an on-chip UKF's s_axis/m_axis beside the AXI4 slave", _ukf_streams, "bmc", 30,
           full=True),
-    Proof("ukf_streams_cover", "stream transfers in and out, after backpressure", _ukf_streams, "cover", 30),
+    Proof("ukf_streams_cover", "stream transfers in and out, after backpressure", _ukf_streams, "cover", 30,
+          full=True),
     # make test-full: deeper BMC and k-induction
     Proof("axi4_small_lat1_deep", "as axi4_small_lat1, deeper", _axi4(1), "bmc", 12, full=True),
     Proof("axi4_small_lat2_deep", "AXI4 slave on the small map, back-end read latency 2", _axi4(2), "bmc", 12, full=True),

@@ -197,9 +197,9 @@ def test_icarus_compiles(tmp_path, args):
 #: narrow exponent with a wide fraction, the reverse, and the widest.
 LINT_FORMATS = ("binary16", "bfloat16", "binary32", "binary64", "e3m2", "e4m3", "e5m5", "e6m6",
                 "e5m7", "e6m11", "e3m40", "e15m2", "e15m64")
-#: Linted in every run (binary32 with its ftz, fewest-stages and iterative variants); the
-#: rest in make test-full (binary16 builds what binary32 does, narrower; binary64 the same
-#: code wider, and its units are simulated in every run).
+#: Linted in every run (binary32's defaults and ftz); the rest in make test-full (binary32's
+#: fewest-stages and iterative variants; binary16 builds what binary32 does, narrower;
+#: binary64 the same code wider).
 LINT_EVERY_RUN = ("binary32",)
 #: Formats also linted with ftz; with the fewest stages (the most logic between registers,
 #: where Yosys folds the most); with div and sqrt iterative.
@@ -208,10 +208,19 @@ MIN_STAGES_FORMATS = ("binary32", "binary16", "e5m5", "e15m2")
 ITERATIVE_FORMATS = ("binary32", "binary64", "e3m2", "e15m64")
 
 
-def _lint_configs(fmt):
+def _lint_configs(fmt, variants=True):
     """id -> ``kfgen fpu`` arguments of the cores linted in ``fmt``: every operation's default;
     in samples of formats ftz, the fewest stages, and div and sqrt at their most cycles per
-    operation (one recurrence step a cycle), in binary32 also at two and four."""
+    operation (one recurrence step a cycle), in binary32 also at two and four. Without
+    ``variants``, only the defaults and ftz; with ``variants="only"``, only the others."""
+    configs = _lint_configs_all(fmt)
+    if variants is True:
+        return configs
+    basic = {k: v for k, v in configs.items() if k in OPS or k.endswith("_ftz")}
+    return basic if not variants else {k: v for k, v in configs.items() if k not in basic}
+
+
+def _lint_configs_all(fmt):
     configs = {}
     for op in OPS:
         args = ["--op", op, "--format", fmt]
@@ -244,10 +253,12 @@ def lint_pool():
 
 
 @pytest.mark.parametrize("fmt", [f if f in LINT_EVERY_RUN else pytest.param(f, marks=pytest.mark.full)
-                                 for f in LINT_FORMATS])
+                                 for f in LINT_FORMATS]
+                         + [pytest.param(f"{f}-variants", marks=pytest.mark.full) for f in LINT_EVERY_RUN])
 def test_verilator_lint_clean(tmp_path, lint_pool, fmt):
     """``verilator -Wall --lint-only`` with the core's own waivers: not one warning."""
-    configs = _lint_configs(fmt)
+    fmt, _, part = fmt.partition("-")
+    configs = _lint_configs(fmt, "only" if part else fmt not in LINT_EVERY_RUN)
     jobs = {key: lint_pool.submit(_generate_and_lint, args, str(tmp_path / key)) for key, args in configs.items()}
     failed = {key: job.result() for key, job in jobs.items() if job.result()}
     assert not failed, "\n".join(f"kfgen fpu {' '.join(configs[k])}:\n  " + "\n  ".join(m)

@@ -89,12 +89,13 @@ def test_cocotb(rtl, sim, tests):
 
 
 #: More configurations, one Verilator build each (12-23 s of CPU), both testbench cases on it:
-#: the chapter's size (7/6/7/6, M = 20: the default core) at P = 1 and 2, and in ``make
-#: test-full`` small cores in binary16 and binary64 with more PEs than the small one and the
-#: chapter's P = 5 and 10. P = 1 is the nanosatellite co-simulation's build: on its worker,
-#: so that neither waits for the other's build.
+#: a small core of the square-root form, and in ``make test-full`` the chapter's size (7/6/7/6,
+#: M = 20: the default core) at P = 1 and 2, small cores in binary16 and binary64 with more
+#: PEs than the small one and the chapter's P = 5 and 10. P = 1 is the nanosatellite
+#: co-simulation's build (which make test runs): on its worker, so that neither waits for the
+#: other's build.
 CONFIGURATIONS = [
-    pytest.param([], id="m20_p1", marks=pytest.mark.xdist_group("cosim_nanosat")),
+    pytest.param([], id="m20_p1", marks=[pytest.mark.xdist_group("cosim_nanosat"), pytest.mark.full]),
     pytest.param(["--pes", "2"], id="m20_p2", marks=pytest.mark.full),
     pytest.param([*SMALL, "--form", "sqrt", "--pes", "2"], id="small_sqrt_p2"),
     pytest.param(["--form", "sqrt", "--pes", "2"], id="m20_sqrt_p2", marks=pytest.mark.full),
