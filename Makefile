@@ -22,7 +22,7 @@ PACKAGING := pyproject.toml setup.py
 # a run imports when it imports them, not the whole 700 MB at install (20 s of the bootstrap).
 PIP       := PYTHONWARNINGS='ignore:Editable installation:UserWarning' $(PY) -m pip -q --disable-pip-version-check
 OUT       ?= out
-JOBS      ?= 2
+JOBS      ?= 3
 
 .PHONY: all verilog dev test test-full formal bench bench-fpu plots lint clean distclean
 
@@ -55,6 +55,8 @@ lint: verilog $(DEV)
 	$(VENV)/bin/kfgen lint $(OUT)/*/
 
 # JOBS pytest-xdist workers; tests that share a generated core run on one worker (loadgroup).
+# Three on a 2-core machine: a worker waiting on a group's long serial tail leaves a core idle,
+# and the third fills it (pytest 8 min 8 s against 10 min 32 s with two, docs/development.md).
 # The slowest tests are listed so that a slower regression shows where the time went.
 PYTEST := $(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=15
 
