@@ -104,9 +104,8 @@ def mutated(mutant: Mutant):
 
 
 def _sby_text(proof: Proof) -> str:
-    mode = {"prove": "prove", "bmc": "bmc", "cover": "cover"}[proof.mode]
     return "\n".join([
-        "[options]", f"mode {mode}", f"depth {proof.depth}", "multiclock off", "",
+        "[options]", f"mode {proof.mode}", f"depth {proof.depth}", "multiclock off", "",
         "[engines]", "smtbmc yices", "",
         "[script]", "read_rtlil top.il", "prep -top top", *proof.script, "",
         "[files]", "top.il", "",

@@ -27,10 +27,6 @@ from .watchdog import bound
 
 __all__ = ["engine_campaign"]
 
-#: Cycles around a step's expected end within which a bus write may meet either state.
-MARGIN = 48
-
-
 class _Map:
     """The manifest's map as the campaign needs it: what a word address is."""
 
@@ -73,6 +69,11 @@ async def engine_campaign(tb, clean, clock_ns: int, sequences: int | None = None
     def idle_for_sure(at):
         return at > state["hi"] + 4
 
+    def page_beats(addr):
+        """The most beats an INCR burst from ``addr`` takes without leaving its 4 KB page (or
+        the aperture)."""
+        return (min(amap.size, (addr // 4096 + 1) * 4096) - addr) // 4
+
     def random_address():
         pick = rng.random()
         if pick < 0.15:  # a register or the words around them
@@ -88,7 +89,7 @@ async def engine_campaign(tb, clean, clock_ns: int, sequences: int | None = None
     async def do_read():
         addr = random_address()
         beats = int(rng.integers(1, 9))
-        beats = min(beats, (min(amap.size, (addr // 4096 + 1) * 4096) - addr) // 4)  # stay in the 4 KB page
+        beats = min(beats, page_beats(addr))
         got = await axi.read(addr, 4 * beats)
         kinds = [amap.what(addr + 4 * i) for i in range(beats)]
         want = AxiResp.SLVERR if any(k is None for k in kinds) else AxiResp.OKAY
@@ -105,9 +106,9 @@ async def engine_campaign(tb, clean, clock_ns: int, sequences: int | None = None
 
     async def do_write():
         addr = random_address()
-        if amap.what(addr) in (("reg", "CTRL"),):
+        if amap.what(addr) == ("reg", "CTRL"):
             addr = amap.regs["STATUS"]["offset"]  # CTRL is written by the start and reset ops
-        beats = min(int(rng.integers(1, 9)), (min(amap.size, (addr // 4096 + 1) * 4096) - addr) // 4)
+        beats = min(int(rng.integers(1, 9)), page_beats(addr))
         kinds = [amap.what(addr + 4 * i) for i in range(beats)]
         if any(k == ("reg", "CTRL") for k in kinds):
             beats = kinds.index(("reg", "CTRL"))

@@ -27,7 +27,13 @@ from amaranth.lib.wiring import In
 from .axi4 import DATA_WIDTH, FULL_SIZE, Burst, Resp, WordBusSignature
 
 __all__ = ["Axi4Properties", "StreamProperties", "TransferCount", "SmallMap", "hold_rule",
-           "stall_counter", "drive_any", "bounded_run", "SlaveHarness", "StreamHarness"]
+           "stall_counter", "drive_any", "bounded_run", "SlaveHarness", "StreamHarness", "check_if"]
+
+
+def check_if(enabled: bool):
+    """``Assert`` when ``enabled``, else a statement maker that checks nothing (a checker's
+    property group left out of a proof)."""
+    return Assert if enabled else (lambda cond, message=None, src_loc_at=0: [])
 
 
 def hold_rule(m: Module, valid, ready, payload, check, name: str, reset=None):
@@ -128,9 +134,7 @@ class Axi4Properties(Elaboratable):
 
     def _checker(self, group):
         """``Assert`` for a group this checker proves, else a statement that checks nothing."""
-        if group in self._groups:
-            return Assert
-        return lambda cond, message=None, src_loc_at=0: []
+        return check_if(group in self._groups)
 
     def _read_state(self, m, reads, arq, r_beat):
         """What the slave's read registers must hold, given the bursts the checker has seen:

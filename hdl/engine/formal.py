@@ -28,12 +28,12 @@ from the back end's decoder:
 from __future__ import annotations
 
 from amaranth.asserts import AnySeq
-from amaranth.hdl import Assert, Assume, Cat, Const, Cover, Elaboratable, Fragment, Module, Mux, ResetSignal, Signal
+from amaranth.hdl import Assume, Cat, Const, Cover, Elaboratable, Fragment, Module, Mux, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from ..bus.axi4 import Axi4Slave, axi4_slave_members
-from ..bus.formal import Axi4Properties, StreamProperties, TransferCount, bounded_run, drive_any
+from ..bus.formal import Axi4Properties, StreamProperties, TransferCount, bounded_run, check_if, drive_any
 from ..linalg.banks import BUS_READ_LATENCY
 from .core import Backend, stream_members
 from .regmap import BUS_ID_WIDTH
@@ -136,8 +136,7 @@ class MapProperties(Elaboratable):
 
     def elaborate(self, platform):
         m = Module()
-        rules = Assert if "rules" in self._groups else (lambda cond, message=None: [])
-        modelled = Assert if "model" in self._groups else (lambda cond, message=None: [])
+        rules, modelled = check_if("rules" in self._groups), check_if("model" in self._groups)
         bus, eng, rmap, d = self._back.bus, self._eng, self._map, self.decode
         busy = eng.busy
         ctrl, status = rmap["CTRL"], rmap["STATUS"]
