@@ -1,14 +1,20 @@
 """Every core's benchmark, one table after another: ``python -m kfgen.gen.bench [CORE ...]``.
 
 Each core's descriptor names its bench module (``CoreDescriptor.bench``); ``make bench`` runs
-them all, ``python -m kfgen.gen.bench fpu`` one. The shared synthesis and place-and-route
-helpers are in :mod:`kfgen.gen.synth`.
+them all, ``python -m kfgen.gen.bench fpu`` one. Their jobs run as tasks on one Dask cluster
+(:mod:`kfgen.sim.cluster`): a ``LocalCluster`` sized to the machine, ``--scheduler ADDRESS``
+for one a user runs, or ``--serial`` in this process. The shared synthesis and
+place-and-route helpers are in :mod:`kfgen.gen.synth`.
 """
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import sys
+import time
+
+from kfgen.sim.cluster import add_arguments, shared
 
 from .cores import discover
 
@@ -16,16 +22,23 @@ __all__ = ["main"]
 
 
 def main(argv=None) -> int:
-    names = list(sys.argv[1:] if argv is None else argv)
     cores = {name: core for name, core in discover().items() if core.bench}
-    unknown = [n for n in names if n not in cores]
+    ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench", description=__doc__.split("\n\n")[0])
+    ap.add_argument("cores", nargs="*", metavar="CORE", help=f"cores to bench (default all: {', '.join(cores)})")
+    add_arguments(ap)
+    args = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    unknown = [n for n in args.cores if n not in cores]
     if unknown:
         print(f"bench: unknown core {unknown[0]!r}; cores with a bench: {', '.join(cores)}", file=sys.stderr)
         return 2
     status = 0
-    for name in names or cores:
-        print(f"\n## {name}\n", flush=True)
-        status |= importlib.import_module(cores[name].bench).main([])
+    t0 = time.monotonic()
+    with shared(args) as runner:
+        for name in args.cores or cores:
+            print(f"\n## {name}\n", flush=True)
+            status |= importlib.import_module(cores[name].bench).main([])
+        print(f"\nbench: {', '.join(args.cores or cores)} in {time.monotonic() - t0:,.0f} s on {runner.where}",
+              flush=True)
     return status
 
 

@@ -13,18 +13,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
 from kfgen.hdl.castella.descriptor import CORE
 from kfgen.hdl.castella.params import CastellaParams
-from kfgen.sim.toolchain import ToolMissing
 
-from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, seeds_text, write_core, xilinx_resources
+from kfgen.sim.cluster import add_arguments, collect, open_runner, timed
+from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, seeds_text, write_core, xilinx_task
 
 __all__ = ["simulated_rate", "tracks_for_full_rate", "table", "main"]
 
@@ -137,7 +135,8 @@ def table(rows: list[dict]) -> str:
              [f"{r['fmax_mhz'] / r['ii'] / p['msps']:.1f}x" if r.get("fmax_mhz") else "-" for r in rows]),
         line("simulated rate, round-robin over all tracks (measurements/clock)", "-", each("sim_rate", 3)),
         line("  = measurements/s at Fmax", "-",
-             [_fmt(r["fmax_mhz"] * 1e6 * r["sim_rate"], 0) if r.get("fmax_mhz") else "-" for r in rows]),
+             [_fmt(r["fmax_mhz"] * 1e6 * r["sim_rate"], 0) if r.get("fmax_mhz") and "sim_rate" in r else "-"
+              for r in rows]),
     ])
 
 
@@ -170,36 +169,36 @@ def _parser():
     ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--no-dsp", action="store_true", help="skip the --multipliers dsp cores (Xilinx DSP48E1 products)")
     ap.add_argument("-o", "--out", default="build/bench", help="work directory (default build/bench)")
+    add_arguments(ap)
     return ap
+
+
+def _rate(tracks: int, count: int) -> dict:
+    """:func:`simulated_rate` of a configuration, as a task."""
+    return {"sim_rate": simulated_rate(CastellaParams(tracks=tracks), tracks, count)}
 
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     out = Path(args.out)
-    core = CORE
     start = time.monotonic()
     rows, dsp_rows, jobs = [], [], []
-    try:
-        with ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 2) - 1)) as pool:
-            for n, multipliers in ((n, m) for n in args.tracks for m in ("lut", "dsp")[:1 + (not args.no_dsp)]):
-                params = CastellaParams(tracks=n, multipliers=multipliers,
-                                        name=f"castella_t{n}" + ("_dsp" if multipliers == "dsp" else ""))
-                work, manifest = write_core(core, params, out)
-                row = {"tracks": n, "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
-                       "track_interval": manifest["track_interval_cycles"], "multipliers": multipliers}
-                (rows if multipliers == "lut" else dsp_rows).append(row)
-                jobs.append((row, pool.submit(xilinx_resources, work, params.name)))
-                if not args.no_pnr:
-                    jobs.append((row, pool.submit(ecp5_fmax, work, params.name, args.freq, tuple(args.seeds))))
-            # The simulations run here while Yosys and nextpnr run in their own processes.
-            for row in rows:
-                row["sim_rate"] = simulated_rate(CastellaParams(tracks=row["tracks"]), row["tracks"], args.count)
-            needed, sweep = tracks_for_full_rate(CastellaParams(), rows[0]["track_interval"], args.count)
-            for row, job in jobs:
-                row.update(job.result())
-    except (ToolMissing, RuntimeError) as exc:
-        print(f"bench: {exc}", file=sys.stderr)
-        return 1
+    with open_runner(args) as runner:
+        for n, multipliers in ((n, m) for n in args.tracks for m in ("lut", "dsp")[:1 + (not args.no_dsp)]):
+            params = CastellaParams(tracks=n, multipliers=multipliers,
+                                    name=f"castella_t{n}" + ("_dsp" if multipliers == "dsp" else ""))
+            work, manifest = write_core(CORE, params, out)
+            row = {"tracks": n, "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
+                   "track_interval": manifest["track_interval_cycles"], "multipliers": multipliers}
+            (rows if multipliers == "lut" else dsp_rows).append(row)
+            jobs.append((row, "xilinx", xilinx_task(runner, work, params.name)))
+            if not args.no_pnr:
+                jobs.append((row, "ecp5", ecp5_fmax(work, params.name, args.freq, tuple(args.seeds), runner=runner)))
+            if multipliers == "lut":
+                jobs.append((row, "simulation", runner.submit(timed, _rate, n, args.count, name=f"rate-t{n}")))
+        # The search for the full rate runs here while the tasks run on the workers.
+        needed, sweep = tracks_for_full_rate(CastellaParams(), rows[0]["track_interval"], args.count)
+        collect(jobs, label=lambda r: f"{r['tracks']} track(s) {r['multipliers']}", tool="bench_castella")
     text = table(rows)
     if dsp_rows:
         text += ("\n\nThe gain products in LUTs (`--multipliers lut`, the default) or in Xilinx DSP48E1 blocks "
@@ -209,6 +208,8 @@ def main(argv=None) -> int:
         "",
         f"Round-robin tracks the pipeline needs for one measurement per clock: {needed} "
         f"(rate by number of tracks: {sweep_text}).",
+        *(f"{r['tracks']} track(s), --multipliers {r['multipliers']}: {key} failed: {r[key + '_error']}."
+          for r in rows + dsp_rows for key in ("xilinx", "ecp5", "simulation") if r.get(key + "_error")),
         *(f"ECP5 critical path, {r['tracks']} track(s): {r['critical_path']}." for r in rows if "critical_path" in r),
         *(f"ECP5 Fmax by seed, {r['tracks']} track(s): {seeds_text(r)}." for r in rows if "fmax_by_seed" in r),
         flow_note(args.freq, args.seeds),
@@ -219,7 +220,7 @@ def main(argv=None) -> int:
     (out / "bench.json").write_text(json.dumps({"rows": rows, "dsp_rows": dsp_rows, "full_rate_tracks": needed,
                                                 "sweep": sweep},
                                                indent=2, sort_keys=True, default=str) + "\n")
-    return 0
+    return 1 if any(r.get(k + "_error") for r in rows + dsp_rows for k in ("xilinx", "ecp5", "simulation")) else 0
 
 
 if __name__ == "__main__":

@@ -16,16 +16,14 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 from kfgen.hdl.arith.float.params import OPS, FpuParams
-from kfgen.sim.toolchain import ToolMissing
-
 from kfgen.hdl.arith.float.descriptor import CORE
 
-from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_resources
+from kfgen.sim.cluster import add_arguments, collect, open_runner
+from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_task
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
 
@@ -94,8 +92,10 @@ def table(rows: list[dict]) -> str:
         vals = [r.get("label", r["op"]), r["format"], _fmt(r["latency"]), _fmt(r["ii"]), _fmt(r.get("lut")), _fmt(r.get("ff")),
                 _fmt(r.get("dsp")), _fmt(r.get("fmax_mhz")),
                 _fmt(util.get("TRELLIS_COMB")), _fmt(util.get("TRELLIS_FF")), _fmt(util.get("MULT18X18D", 0))]
-        if r.get("error"):
-            vals[4] = f"error: {r['error']}"
+        if r.get("xilinx_error"):
+            vals[4] = f"error: {r['xilinx_error']}"
+        if r.get("ecp5_error"):
+            vals[7] = f"error: {r['ecp5_error']}"
         out.append(vals)
     return md_table(head, out)
 
@@ -131,9 +131,9 @@ def _parser():
     ap.add_argument("--freq", type=float, default=125.0, help="nextpnr target frequency in MHz (default 125)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                     help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
-    ap.add_argument("--jobs", type=int, default=2, help="parallel work items (default 2)")
     ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("-o", "--out", default="build/bench_fpu", help="work directory (default build/bench_fpu)")
+    add_arguments(ap)
     return ap
 
 
@@ -143,47 +143,31 @@ def _work_items(args) -> list[Variant]:
     return [Variant(op, f) for op in (args.ops or list(OPS)) for f in (args.formats or ["binary32"])]
 
 
-def _measure(row: dict, work: Path, top: str, args) -> dict:
-    t0 = time.monotonic()
-    try:
-        row.update(xilinx_resources(work, top))
-        row.pop("cells", None)
-        if not args.no_pnr:
-            row.update(ecp5_fmax(work, top, args.freq, tuple(args.seeds)))
-    except RuntimeError as exc:
-        row["error"] = str(exc).splitlines()[0]
-    row["seconds"] = time.monotonic() - t0
-    print(f"bench_fpu: {row['label']} {row['format']} done in {row['seconds']:.0f} s", file=sys.stderr, flush=True)
-    return row
-
-
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     out = Path(args.out)
-    core = CORE
     start = time.monotonic()
     rows, jobs = [], []
-    try:
-        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for v in _work_items(args):
-                params = FpuParams(op=v.op, format=v.format, subnormals=v.subnormals,
-                                   cycles_per_op=v.cycles_per_op, name=v.name)
-                work, manifest = write_core(core, params, out)
-                row = {"op": v.op, "label": v.label, "format": v.format, "latency": manifest["latency_cycles"],
-                       "ii": manifest["initiation_interval"]}
-                rows.append(row)
-                jobs.append(pool.submit(_measure, row, work, params.name, args))
-            for job in jobs:
-                job.result()
-    except ToolMissing as exc:
-        print(f"bench_fpu: {exc}", file=sys.stderr)
-        return 1
+    with open_runner(args) as runner:
+        for v in _work_items(args):
+            params = FpuParams(op=v.op, format=v.format, subnormals=v.subnormals,
+                               cycles_per_op=v.cycles_per_op, name=v.name)
+            work, manifest = write_core(CORE, params, out)
+            row = {"op": v.op, "label": v.label, "format": v.format, "latency": manifest["latency_cycles"],
+                   "ii": manifest["initiation_interval"]}
+            rows.append(row)
+            jobs.append((row, "xilinx", xilinx_task(runner, work, params.name)))
+            if not args.no_pnr:
+                jobs.append((row, "ecp5", ecp5_fmax(work, params.name, args.freq, tuple(args.seeds), runner=runner)))
+        collect(jobs, label=lambda r: f"{r['label']} {r['format']}", tool="bench_fpu")
+    for row in rows:
+        row.pop("cells", None)
     report = render(rows, args, time.monotonic() - start)
     print(report, end="")
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench_fpu.md").write_text(report)
     (out / "bench_fpu.json").write_text(json.dumps(rows, indent=2, sort_keys=True, default=str) + "\n")
-    return 1 if any(r.get("error") for r in rows) else 0
+    return 1 if any(r.get("xilinx_error") or r.get("ecp5_error") for r in rows) else 0
 
 
 if __name__ == "__main__":

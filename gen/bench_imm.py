@@ -25,7 +25,6 @@ import json
 import re
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from kfgen.hdl.imm.descriptor import CORE
@@ -33,8 +32,10 @@ from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.sim.toolchain import ToolMissing
 
-from .bench_ukf import BRAM36_BITS, _timed
-from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_resources
+from kfgen.sim.cluster import add_arguments, collect, open_runner, timed
+
+from .bench_ukf import BRAM36_BITS
+from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
 __all__ = ["MODELS", "PES", "cycles_table", "resources_table", "render", "main"]
 
@@ -136,8 +137,8 @@ def _parser():
                     help="P of the R = 5 cores synthesised for Xilinx (default 1 2 4)")
     ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target frequency in MHz (default 100)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1], help="nextpnr placer seeds (default 1)")
-    ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
     ap.add_argument("-o", "--out", default="build/bench_imm", help="work directory (default build/bench_imm)")
+    add_arguments(ap)
     return ap
 
 
@@ -155,23 +156,24 @@ def main(argv=None) -> int:
                              "bounds": man["bounds"], "engine": man["engine"], "div_sqrt": params.div_sqrt})
         seconds["generating the cores"] = time.monotonic() - t0
         big = [r for r in rows if r["R"] == max(MODELS)]
-        if not args.no_sim:
-            t0 = time.monotonic()
-            for r in big:
-                r.update(_measure(r["work"], r["top"], out / "verilator"))
-                print(f"bench_imm: simulation P = {r['pes']} done", file=sys.stderr, flush=True)
-            seconds["simulation"] = time.monotonic() - t0
-        if not args.no_synth:
-            t0 = time.monotonic()
-            jobs = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in big[::-1]
-                    if r["pes"] in args.synth_pes]
-            if not args.no_fmax:
-                jobs += [(r, "ecp5", ecp5_fmax, r["work"], r["top"], args.freq, tuple(args.seeds))
-                         for r in big if r["pes"] == 1]
-            with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-                for f in [pool.submit(_timed, *j) for j in jobs]:
-                    f.result()
-            seconds["synthesis and place and route"] = time.monotonic() - t0
+        t0 = time.monotonic()
+        with open_runner(args) as runner:
+            jobs = []
+            if not args.no_synth:
+                jobs += [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in big[::-1]
+                         if r["pes"] in args.synth_pes]
+                if not args.no_fmax:
+                    jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], args.freq, tuple(args.seeds), runner=runner))
+                             for r in big if r["pes"] == 1]
+            if not args.no_sim:
+                jobs += [(r, "sim", runner.submit(timed, _measure, r["work"], r["top"], out / "verilator",
+                                                  name=f"simulate-{r['top']}")) for r in big]
+            collect(jobs, label=lambda r: f"R = {r['R']}, P = {r['pes']}", tool="bench_imm")
+        seconds["every job (wall)"] = time.monotonic() - t0
+        for key, what in (("sim", "simulation"), ("xilinx", "Xilinx synthesis"), ("ecp5", "ECP5 place and route")):
+            total = sum(r.get(f"{key}_seconds", 0) for r in rows)
+            if total:
+                seconds[f"{what} (task time)"] = total
     except ToolMissing as exc:
         print(f"bench_imm: {exc}", file=sys.stderr)
         return 1

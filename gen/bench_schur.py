@@ -16,16 +16,16 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
 from kfgen.hdl.arith.float.params import cycles_per_op_range, stages_range
 from kfgen.hdl.schur.descriptor import CORE
 from kfgen.hdl.schur.params import SchurParams
-from kfgen.sim.toolchain import ToolMissing
 
-from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_resources
+from kfgen.sim.cluster import add_arguments, collect, open_runner
+
+from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
 __all__ = ["SLIDES", "SWEEP", "Point", "mapping", "table", "render", "main"]
 
@@ -138,25 +138,11 @@ def _parser():
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                     help="nextpnr placer seeds for the slides' rows; the median Fmax is reported (default 1 2 3)")
     ap.add_argument("--sweep-seeds", type=int, nargs="+", default=[1], help="placer seeds for the sweep (default 1)")
-    ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
     ap.add_argument("--no-pnr", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--figures", default="sim/schur/figures", help="where the figure goes (default sim/schur/figures)")
     ap.add_argument("-o", "--out", default="build/bench_schur", help="work directory (default build/bench_schur)")
+    add_arguments(ap)
     return ap
-
-
-def _measure(row: dict, work: Path, top: str, args, seeds) -> None:
-    for key, fn, fargs in (("xilinx", xilinx_resources, ()), ("ecp5", ecp5_fmax, (args.freq, tuple(seeds)))):
-        if key == "ecp5" and args.no_pnr:
-            continue
-        t0 = time.monotonic()
-        try:
-            row.update(fn(work, top, *fargs))
-        except RuntimeError as exc:
-            row[f"{key}_error"] = str(exc).splitlines()[0]
-        row.pop("cells", None)
-        print(f"bench_schur: {row['point'].label} {key} done in {time.monotonic() - t0:.0f} s", file=sys.stderr,
-              flush=True)
 
 
 def _save(out: Path, rows: list[dict]) -> list[dict]:
@@ -173,25 +159,24 @@ def main(argv=None) -> int:
     points = (SLIDES if args.points != "sweep" else []) + (SWEEP if args.points != "slides" else [])
     start = time.monotonic()
     rows = []
-    try:
-        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            jobs = []
-            for point in points:
-                params, moved = mapping(point)
-                work, manifest = write_core(CORE, params, out)
-                row = {"point": point, "params": {k: getattr(params, k) for k in (
-                    "mul_latency", "add_latency", "div_cycles_per_op", "div_latency")}, "moved": moved,
-                    "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
-                    "units": manifest["units"]}
-                rows.append(row)
-                seeds = args.seeds if point in SLIDES else args.sweep_seeds
-                jobs.append(pool.submit(_measure, row, work, params.name, args, seeds))
-            for job in as_completed(jobs):
-                job.result()
-                _save(out, rows)  # what is measured so far, should the run be cut short
-    except ToolMissing as exc:
-        print(f"bench_schur: {exc}", file=sys.stderr)
-        return 1
+    with open_runner(args) as runner:
+        jobs = []
+        for point in points:
+            params, moved = mapping(point)
+            work, manifest = write_core(CORE, params, out)
+            row = {"point": point, "params": {k: getattr(params, k) for k in (
+                "mul_latency", "add_latency", "div_cycles_per_op", "div_latency")}, "moved": moved,
+                "latency": manifest["latency_cycles"], "ii": manifest["initiation_interval"],
+                "units": manifest["units"]}
+            rows.append(row)
+            seeds = args.seeds if point in SLIDES else args.sweep_seeds
+            jobs.append((row, "xilinx", xilinx_task(runner, work, params.name)))
+            if not args.no_pnr:
+                jobs.append((row, "ecp5", ecp5_fmax(work, params.name, args.freq, tuple(seeds), runner=runner)))
+        # what is measured so far goes to bench_schur.json, should the run be cut short
+        collect(jobs, label=lambda r: r["point"].label, tool="bench_schur", each=lambda _: _save(out, rows))
+    for row in rows:
+        row.pop("cells", None)
     records = _save(out, rows)
     report = render(rows, args, time.monotonic() - start)
     print(report, end="")

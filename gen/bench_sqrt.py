@@ -15,13 +15,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from .bench_ukf import ON_CHIP_APP, _timed
-from kfgen.sim.toolchain import ToolMissing
+from kfgen.sim.cluster import add_arguments, collect, shared
 
-from .synth import ecp5_fmax, md_table, write_core, xilinx_resources
+from .bench_ukf import ON_CHIP_APP
+from .synth import ecp5_fmax, md_table, write_core, xilinx_task
 
 __all__ = ["cycle_rows", "cycles_table", "main"]
 
@@ -71,7 +70,7 @@ def cycles_table(rows: list[dict]) -> str:
     return md_table(head, out)
 
 
-def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True, forms=FORMS) -> list[dict]:
+def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, forms=FORMS) -> list[dict]:
     from kfgen.hdl.ukf.descriptor import CORE
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.sim.ukf.app import load_app
@@ -85,12 +84,10 @@ def synth_rows(pes, out: Path, seeds, freq: float, jobs: int, fmax: bool = True,
             work, manifest = write_core(CORE, params, out)
             rows.append({"pes": p, "form": form, "top": params.name, "work": work,
                          "iteration": manifest["cycles"]["iteration"]})
-    tasks = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in rows[::-1]]
+    jobs = [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in rows[::-1]]
     if fmax:
-        tasks += [(r, "ecp5", ecp5_fmax, r["work"], r["top"], freq, tuple(seeds)) for r in rows[::-1]]
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        for f in [pool.submit(_timed, *t) for t in tasks]:
-            f.result()
+        jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], freq, tuple(seeds), runner=runner)) for r in rows[::-1]]
+    collect(jobs, label=lambda r: f"P = {r['pes']} {r['form']}", tool="bench_sqrt")
     return rows
 
 
@@ -114,7 +111,6 @@ def main(argv=None) -> int:
     ap.add_argument("--synth-pes", default="1,2", help="P of the synthesised cores (default 1,2)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="nextpnr seeds (default 1 2 3)")
     ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target, MHz (default 100)")
-    ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
     ap.add_argument("--synth-forms", default="ldl,sqrt",
                     help="forms synthesised (default ldl,sqrt; the ldl core is part 5's of bench_ukf, unchanged)")
     ap.add_argument("--no-synth", action="store_true", help="skip part 2 (synthesis, place and route)")
@@ -122,6 +118,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-montecarlo", action="store_true", help="skip part 3 (the 100-seed runs)")
     ap.add_argument("--mc-seeds", type=int, default=100, help="Monte Carlo seeds (default 100)")
     ap.add_argument("-o", "--out", default="build/bench_sqrt", help="work directory (default build/bench_sqrt)")
+    add_arguments(ap)
     a = ap.parse_args(argv)
     try:
         synth_pes = sorted({int(x) for x in a.synth_pes.split(",")})
@@ -133,23 +130,20 @@ def main(argv=None) -> int:
     report = ("The square-root form (kfgen ukf --form sqrt) beside the ldl form: cycles per iteration, "
               "nanosatellite sizes (n = 7, m = 6, nw = 7, nv = 6):\n\n" + cycles_table(cycle_rows()) + "\n")
     status = 0
-    if not a.no_synth:
-        try:
-            rows = synth_rows(synth_pes, out, a.seeds, a.freq, a.jobs, not a.no_fmax, a.synth_forms.split(","))
-        except ToolMissing as exc:
-            print(f"bench_sqrt: {exc}", file=sys.stderr)
-            return 1
-        report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
-                   f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
-        status |= any(r.get(k) for r in rows for k in ("xilinx_error", "ecp5_error"))
-    if not a.no_montecarlo:
-        from kfgen.sim.ukf import montecarlo
-        import io
-        from contextlib import redirect_stdout
-        buf = io.StringIO()
-        with redirect_stdout(buf):
-            status |= montecarlo.main(["--seeds", str(a.mc_seeds), "--jobs", str(a.jobs)])
-        report += "\n" + buf.getvalue()
+    with shared(a) as runner:
+        if not a.no_synth:
+            rows = synth_rows(synth_pes, out, a.seeds, a.freq, runner, not a.no_fmax, a.synth_forms.split(","))
+            report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
+                       f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
+            status |= any(r.get(k) for r in rows for k in ("xilinx_error", "ecp5_error"))
+        if not a.no_montecarlo:  # on the same runner
+            from kfgen.sim.ukf import montecarlo
+            import io
+            from contextlib import redirect_stdout
+            buf = io.StringIO()
+            with redirect_stdout(buf):
+                status |= montecarlo.main(["--seeds", str(a.mc_seeds)])
+            report += "\n" + buf.getvalue()
     report += f"\n(bench_sqrt: {time.monotonic() - t0:.0f} s)\n"
     print(report, end="")
     out.mkdir(parents=True, exist_ok=True)

@@ -32,7 +32,6 @@ import json
 import re
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from kfgen.hdl.linalg.engine import OVERHEAD
@@ -43,7 +42,9 @@ from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
 
-from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_resources
+from kfgen.sim.cluster import add_arguments, collect, runner_argv as _runner_argv, shared, timed
+
+from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
 __all__ = ["CHAPTER_CYCLES", "CHAPTER_RESOURCES", "CHAPTER_SYSTEM_US", "STEPS", "bounds", "measured_cycles",
            "cycles_table", "resources_table", "fmax_table", "system_table", "render", "main"]
@@ -305,8 +306,8 @@ def _parser():
                     help="nextpnr target frequency in MHz (default 100, the chapter's clock)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                     help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
-    ap.add_argument("--jobs", type=int, default=2, help="synthesis jobs in parallel (default 2)")
     ap.add_argument("-o", "--out", default="build/bench_ukf", help="work directory (default build/bench_ukf)")
+    add_arguments(ap)
     return ap
 
 
@@ -346,14 +347,17 @@ def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP) -> list[dict
     return rows
 
 
-def _simulate_on_chip(r: dict, cache: Path) -> None:
+def _simulate_on_chip(work: Path, top: str, cache: Path) -> dict:
+    """One iteration of the on-chip testbench, which asserts the manifest's cycles."""
     from kfgen.sim.ukf.run import build_ukf_core, run_ukf
-    try:
-        run_ukf(build_ukf_core(r["work"], r["top"], cache), r["work"], r["top"], ["on_chip_iterations"],
-                "on_chip", env={"KFGEN_TB_ITERATIONS": "1"})
-        r["measured"] = r["iteration"]  # the testbench asserts the manifest's cycles
-    except (AssertionError, RuntimeError) as exc:
-        r["sim_error"] = str(exc).splitlines()[0]
+    run_ukf(build_ukf_core(work, top, cache), work, top, ["on_chip_iterations"], "on_chip",
+            env={"KFGEN_TB_ITERATIONS": "1"})
+    return {}
+
+
+def _system_after(work: Path, top: str, cache: Path, beats: str, built=None) -> dict:
+    """:func:`_system` once ``built`` (the part 1 task that built the same core) is done."""
+    return _system(work, top, cache, beats)
 
 
 def on_chip_table(rows: list[dict], three: list[dict]) -> str:
@@ -381,17 +385,6 @@ def on_chip_table(rows: list[dict], three: list[dict]) -> str:
     return md_table(head, out)
 
 
-def _timed(row: dict, key: str, fn, *args) -> None:
-    """Run a synthesis job into ``row``: its result, or its error's first line; and its time."""
-    t0 = time.monotonic()
-    try:
-        row.update(fn(*args))
-    except RuntimeError as exc:
-        row[f"{key}_error"] = str(exc).splitlines()[0]
-    row[f"{key}_seconds"] = time.monotonic() - t0
-    print(f"bench_ukf: {key} P = {row['pes']} done in {row[f'{key}_seconds']:.0f} s", file=sys.stderr, flush=True)
-
-
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     out = Path(args.out).resolve()  # the testbench runs in its own directory and reads the manifest
@@ -414,52 +407,47 @@ def main(argv=None) -> int:
             if lat not in chains:
                 chains[lat] = sum(bounds(UkfParams(), r["engine"])["chain"].values())
             r["chain"] = chains[lat]
-        seconds["generating the cores and the bounds"] = time.monotonic() - t0
-        if not args.no_sim:
-            t0 = time.monotonic()
-            for r in rows:
-                r.update(_simulate(r["work"], r["top"], out / "verilator"))
-                if r.get("measured"):
-                    r["iteration"] = sum(r["measured"].values())
-                print(f"bench_ukf: simulation P = {r['pes']} done", file=sys.stderr, flush=True)
-            seconds["simulation (part 1)"] = time.monotonic() - t0
-            t0 = time.monotonic()
-            for r in rows:
-                if r["pes"] in args.system_pes:
-                    r["system"] = {b: _system(r["work"], r["top"], out / "verilator", b) for b in ("burst", "single")}
-                    print(f"bench_ukf: system P = {r['pes']} done", file=sys.stderr, flush=True)
-            if any(r.get("system") for r in rows):
-                seconds["system co-simulation (part 4)"] = time.monotonic() - t0
-        for r in rows:
-            r.setdefault("iteration", sum(r["manifest_cycles"].values()))
         chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out) \
             + on_chip_rows(args.tracker_pes, out, TRACKER_APP)
-        if chip and not args.no_sim:
-            t0 = time.monotonic()
-            for r in chip:
-                _simulate_on_chip(r, out / "verilator")
-            seconds["on-chip simulation (part 5)"] = time.monotonic() - t0
-        if not args.no_synth:
-            t0 = time.monotonic()
-            ends = {}
-            # The longest jobs first (the largest P) so that the two workers finish together.
-            jobs = [(r, "xilinx", xilinx_resources, r["work"], r["top"]) for r in rows[::-1] + chip[::-1]]
-            if not args.no_fmax:
-                jobs += [(r, "ecp5", ecp5_fmax, r["work"], r["top"], args.freq, tuple(args.seeds))
-                         for r in rows[::-1] + chip[::-1] if r["pes"] in args.fmax_pes]
-
-            def job(row, key, fn, *fargs):
-                _timed(row, key, fn, *fargs)
-                ends[key] = max(ends.get(key, 0.0), time.monotonic())
-
-            with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-                for f in [pool.submit(job, *j) for j in jobs]:
-                    f.result()
-            # Both parts share the workers: each one's time runs from the start to its last job's end.
-            seconds["Xilinx synthesis (part 2)"] = ends["xilinx"] - t0
-            if "ecp5" in ends:
-                seconds["ECP5 place and route (part 3)"] = ends["ecp5"] - t0
-                seconds["parts 2 and 3 together"] = time.monotonic() - t0
+        seconds["generating the cores and the bounds"] = time.monotonic() - t0
+        t0 = time.monotonic()
+        cache = out / "verilator"
+        with shared(args) as runner:
+            # Every job at once, the longest first (the largest P's synthesis), so that the
+            # workers finish together; a core's system runs after its own build.
+            jobs = []
+            if not args.no_synth:
+                jobs += [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in rows[::-1] + chip[::-1]]
+                if not args.no_fmax:
+                    jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], args.freq, tuple(args.seeds), runner=runner))
+                             for r in rows[::-1] + chip[::-1] if r["pes"] in args.fmax_pes]
+            if not args.no_sim:
+                for r in rows:
+                    sim = runner.submit(timed, _simulate, r["work"], r["top"], cache, name=f"simulate-{r['top']}")
+                    jobs.append((r, "sim", sim))
+                    if r["pes"] in args.system_pes:
+                        for beats in ("burst", "single"):
+                            res = r.setdefault("system", {}).setdefault(beats, {})
+                            jobs.append((res, "system", runner.submit(_system_after, r["work"], r["top"], cache, beats,
+                                                                      sim, name=f"system-{beats}-{r['top']}")))
+                jobs += [(r, "sim", runner.submit(timed, _simulate_on_chip, r["work"], r["top"], cache,
+                                                  name=f"simulate-{r['top']}")) for r in chip]
+            collect(jobs, label=lambda r: f"P = {r.get('pes', '')} {r.get('top', '')}", tool="bench_ukf")
+        seconds["every job (wall)"] = time.monotonic() - t0
+        for key, what in (("sim", "simulation"), ("xilinx", "Xilinx synthesis"), ("ecp5", "ECP5 place and route")):
+            total = sum(r.get(f"{key}_seconds", 0) for r in rows + chip)
+            if total:
+                seconds[f"{what} (task time)"] = total
+        for r in rows:
+            for res in r.get("system", {}).values():
+                if "system_error" in res:
+                    res["error"] = res.pop("system_error")
+            if r.get("measured"):
+                r["iteration"] = sum(r["measured"].values())
+            r.setdefault("iteration", sum(r["manifest_cycles"].values()))
+        for r in chip:
+            if not args.no_sim and not r.get("sim_error"):
+                r["measured"] = r["iteration"]  # the testbench asserts the manifest's cycles
     except ToolMissing as exc:
         print(f"bench_ukf: {exc}", file=sys.stderr)
         return 1
@@ -481,7 +469,7 @@ def main(argv=None) -> int:
     if not args.no_sqrt:  # part 6: the square-root form beside the ldl form
         from .bench_sqrt import main as bench_sqrt
         print("\n### Part 6: the square-root form\n", flush=True)
-        gen_ok &= bench_sqrt(["--jobs", str(args.jobs), "-o", str(out / "sqrt"), *(["--no-synth"] if args.no_synth else []),
+        gen_ok &= bench_sqrt([*_runner_argv(args), "-o", str(out / "sqrt"), *(["--no-synth"] if args.no_synth else []),
                               *(["--no-fmax"] if args.no_fmax else [])]) == 0
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)

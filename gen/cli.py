@@ -99,9 +99,11 @@ def _defaults(params_cls) -> dict:
 
 def _help(doc: Doc, default, resolved=None) -> str:
     """One option's help. A field whose default is None is worked out from the others (a unit's
-    latency from the operation and format): its help gives the number the defaults resolve to."""
+    latency from the operation and format): its help gives the number the defaults resolve to,
+    or none for one that stays None (``--target-mhz``)."""
     unit = f" [{doc.unit}]" if doc.unit else ""
-    shown = f"{resolved} (for the other options' defaults)" if default is None else default
+    shown = default if default is not None else "none" if resolved is None else \
+        f"{resolved} (for the other options' defaults)"
     return f"{doc.meaning}{unit}; {doc.allowed}; default {shown}".replace("%", "%%")
 
 
@@ -225,11 +227,17 @@ def _convert(text: str, default):
     if isinstance(default, str):
         return text
     try:
-        if default is None or isinstance(default, int):  # None: an optional count
+        if default is None or isinstance(default, int):  # None: an optional count (or clock)
             return int(text, 10)
         return float(text)
     except ValueError:
-        return text
+        pass
+    if default is None:  # an optional clock (--target-mhz 137.5); a count says it is not one
+        try:
+            return float(text)
+        except ValueError:
+            pass
+    return text
 
 
 def _params(core: CoreDescriptor, args: argparse.Namespace):

@@ -45,6 +45,14 @@ def port_names(component) -> set[str]:
     return {"clk", "rst", *("__".join(map(str, path)) for path, _, _ in component.signature.flatten(component))}
 
 
+def recorded(params) -> dict:
+    """The parameters a core's header and manifest record: every field, less those marked
+    ``omit_none`` (:data:`kfgen.hdl.arith.float.params.OMIT_NONE`) while they are ``None``."""
+    omitted = {f.name for f in dataclasses.fields(params)
+               if f.metadata.get("omit_none") and getattr(params, f.name) is None}
+    return {k: v for k, v in dataclasses.asdict(params).items() if k not in omitted}
+
+
 def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: str = "DIR") -> str:
     """The ``kfgen`` command line that regenerates ``params`` (and ``flow``) byte for byte:
     every parameter and flow option that differs from its default, quoted for a POSIX shell."""
@@ -94,7 +102,7 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
         from amaranth.hdl import Fragment
         Fragment.get(component, None)
         raise ParamError("name", f"{top!r} is also a port name of the {core.name} core; choose another module name")
-    parameters = dataclasses.asdict(params)
+    parameters = recorded(params)
     head = header(core.name, top, parameters, command(core, params))
     verilog = emit(component, top, head)
     if top in declared_names(verilog):

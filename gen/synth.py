@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import json
 import subprocess
+import time
 from pathlib import Path
 
 from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 
 from .output import generate, write_files
 
-__all__ = ["write_core", "xilinx_resources", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
+__all__ = ["write_core", "xilinx_resources", "xilinx_task", "ecp5_synth", "ecp5_pnr", "ecp5_summary", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
            "short_path"]
 
 #: Lookup-table sites a 7-series memory or shift-register primitive occupies.
@@ -57,31 +58,41 @@ def xilinx_resources(work: Path, top: str) -> dict:
             "cells": cells}
 
 
-def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3)) -> dict:
-    """Fmax (MHz) of ``clk`` on an LFE5U-85F (CABGA381) after place and route, per placer seed.
-
-    Fmax moves by several percent with the placement seed, so we route with each of
-    ``seeds`` and report the median (used for throughput) and the best, with the median
-    seed's critical path (nextpnr's default router1).
-    """
+def ecp5_synth(work: Path, top: str) -> dict:
+    """``synth_ecp5`` of ``top.v`` into ``top_ecp5.json`` (the netlist every seed places)."""
+    t0 = time.monotonic()
     _run([*yosys_cmd(), "-q", "-p", f"read_verilog {top}.v; synth_ecp5 -top {top} -json {top}_ecp5.json"],
          work, "ecp5_synth.log")
+    return {"netlist": f"{top}_ecp5.json", "seconds": time.monotonic() - t0}
+
+
+def ecp5_pnr(work: Path, top: str, freq: float, seed: int, synth: dict | None = None) -> dict:
+    """One placer seed of nextpnr-ecp5 on the netlist :func:`ecp5_synth` wrote (``synth``, its
+    result, only orders the task after it): the report's name, or the failure's first line."""
+    t0 = time.monotonic()
+    rep = f"ecp5_report_s{seed}.json"
+    try:
+        _run([*nextpnr_ecp5_cmd(), "--85k", "--package", "CABGA381", "--freq", str(freq), "--seed", str(seed),
+              "--timing-allow-fail", "--json", f"{top}_ecp5.json", "--report", rep],
+             work, f"ecp5_pnr_s{seed}.log")
+    except RuntimeError as exc:  # a seed that does not route: noted, the others go on
+        return {"seed": seed, "failed": str(exc).splitlines()[0], "seconds": time.monotonic() - t0}
+    return {"seed": seed, "report": rep, "seconds": time.monotonic() - t0}
+
+
+def ecp5_summary(work: Path, synth: dict, seeds: list[dict]) -> dict:
+    """The seeds' reports as :func:`ecp5_fmax` gives them (``seconds``: the tasks' sum)."""
     runs, failed = [], []
-    for seed in seeds:
-        rep = f"ecp5_report_s{seed}.json"
-        try:
-            _run([*nextpnr_ecp5_cmd(), "--85k", "--package", "CABGA381", "--freq", str(freq), "--seed", str(seed),
-                  "--timing-allow-fail", "--json", f"{top}_ecp5.json", "--report", rep],
-                 work, f"ecp5_pnr_s{seed}.log")
-        except RuntimeError:  # a seed that does not route: note it, go on
-            failed.append(seed)
+    for s in seeds:
+        if "failed" in s:
+            failed.append(s["seed"])
             continue
-        report = json.loads((work / rep).read_text())
+        report = json.loads((work / s["report"]).read_text())
         clocks = {k: v for k, v in report["fmax"].items() if "clk" in k}
         if len(clocks) != 1:
-            raise RuntimeError(f"expected one clock named after clk in {work / rep}, got {list(report['fmax'])}")
+            raise RuntimeError(f"expected one clock named after clk in {work / s['report']}, got {list(report['fmax'])}")
         (fmax,) = clocks.values()
-        runs.append((fmax["achieved"], seed, report, fmax["constraint"]))
+        runs.append((fmax["achieved"], s["seed"], report, fmax["constraint"]))
     if not runs:
         raise RuntimeError(f"nextpnr failed for every seed in {work} (logs ecp5_pnr_s*.log)")
     runs.sort(key=lambda r: r[0])
@@ -89,7 +100,32 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3)) -> dic
     used = {k: v["used"] for k, v in report["utilization"].items() if v["used"]}
     return {"fmax_mhz": median, "fmax_best_mhz": runs[-1][0], "fmax_by_seed": {r[1]: r[0] for r in runs},
             "failed_seeds": failed, "target_mhz": target, "utilization": used,
-            "critical_path": _critical_path(report)}
+            "critical_path": _critical_path(report),
+            "seconds": synth["seconds"] + sum(s["seconds"] for s in seeds)}
+
+
+def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3), runner=None):
+    """Fmax (MHz) of ``clk`` on an LFE5U-85F (CABGA381) after place and route, per placer seed.
+
+    Fmax moves by several percent with the placement seed, so we route with each of
+    ``seeds`` and report the median (used for throughput) and the best, with the median
+    seed's critical path (nextpnr's default router1).
+
+    With a :class:`~kfgen.sim.cluster.Runner`, the synthesis and each seed are tasks and this
+    returns the future of the summary; without one, the summary.
+    """
+    if runner is None:
+        synth = ecp5_synth(work, top)
+        return ecp5_summary(work, synth, [ecp5_pnr(work, top, freq, s) for s in seeds])
+    synth = runner.submit(ecp5_synth, work, top, name=f"synth_ecp5-{top}", priority=1)
+    runs = [runner.submit(ecp5_pnr, work, top, freq, s, synth, name=f"nextpnr-{top}-s{s}") for s in seeds]
+    return runner.submit(ecp5_summary, work, synth, runs, name=f"fmax-{top}")
+
+
+def xilinx_task(runner, work: Path, top: str):
+    """:func:`xilinx_resources` as a task (with its ``seconds``)."""
+    from kfgen.sim.cluster import timed
+    return runner.submit(timed, xilinx_resources, work, top, name=f"synth_xilinx-{top}", priority=1)
 
 
 def _critical_path(report: dict) -> str:

@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .reference import run_reference, run_single
+from kfgen.sim.cluster import add_arguments, open_runner
+
 from .scenario import CONDITIONS, RAIN, SEED, STEPS, Scenario, identification, satlink
 
 __all__ = ["REFERENCE", "COLORS", "figure_probabilities", "figure_snr", "figures", "main"]
@@ -240,11 +242,14 @@ def main(argv=None):
     ap.add_argument("--rtl", metavar="DIR",
                     help="also run the scenario through the generated IMM core in Verilator (P = 4, "
                          "every word checked against the golden model), working in DIR, and draw its trace")
+    add_arguments(ap)
     args = ap.parse_args(argv)
     extra = _load_traces(args.traces) if args.traces else {}
-    if args.rtl:
+    if args.rtl:  # the RTL run as a task (kfgen.sim.cluster), as the benches' simulations
         from kfgen.sim.imm.run import run_scenario
-        trace = run_scenario(args.rtl, args.steps, pes=4, seed=args.seed)
+        with open_runner(args) as runner:
+            trace = runner.submit(run_scenario, args.rtl, args.steps, pes=4, seed=args.seed,
+                                  name="imm-scenario").result()
         extra[RTL] = (trace["mu"], trace["x"])
     for path in figures(args.outdir, args.steps, args.seed, extra or None):
         print(path)

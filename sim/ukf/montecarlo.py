@@ -10,17 +10,19 @@ later estimates are not); a seed *converges* when its attitude error stays below
 from :data:`SETTLE` seconds on.
 
     python -m kfgen.sim.ukf.montecarlo [--seeds 100] [--steps 1000] [--forms ldl,sqrt]
-        [--formats binary32,binary16,bfloat16] [--jobs 2]
+        [--formats binary32,binary16,bfloat16] [--workers N | --scheduler ADDRESS | --serial]
+
+Each configuration is a task on Dask distributed (:mod:`kfgen.sim.cluster`).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from kfgen.sim.cluster import add_arguments, open_runner
 from kfgen.sim.linalg.batch import BatchStatus, run_batch
 from kfgen.sim.linalg.exec import from_words, to_words
 
@@ -102,25 +104,21 @@ def summary(res: dict) -> dict:
             "worst": float(np.max(worst[clean])) if clean.any() else float("nan")}
 
 
-def _job(args):
-    return run(*args)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m kfgen.sim.ukf.montecarlo", description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=100)
     ap.add_argument("--steps", type=int, default=STEPS)
     ap.add_argument("--forms", default="ldl,sqrt")
     ap.add_argument("--formats", default="binary32,binary16,bfloat16")
-    ap.add_argument("--jobs", type=int, default=2)
+    add_arguments(ap)
     a = ap.parse_args(argv)
-    if a.seeds < 1 or a.steps < 1 or a.jobs < 1:
-        print("error: --seeds, --steps and --jobs must be at least 1", file=sys.stderr)
+    if a.seeds < 1 or a.steps < 1:
+        print("error: --seeds and --steps must be at least 1", file=sys.stderr)
         return 2
     forms, formats = a.forms.split(","), a.formats.split(",")
-    jobs = [(f, t, a.seeds, a.steps) for t in formats for f in forms]
-    with ProcessPoolExecutor(a.jobs) as pool:
-        results = list(pool.map(_job, jobs))
+    with open_runner(a) as runner:
+        jobs = [runner.submit(run, f, t, a.seeds, a.steps, name=f"montecarlo-{f}-{t}") for t in formats for f in forms]
+        results = [j.result() for j in jobs]
     print(f"nanosatellite, P0 = I, {a.seeds} seeds x {a.steps} iterations, on-chip golden model; "
           f"converged: attitude error below the goal at every iteration from {SETTLE:g} s on\n")
     print("| format | form | seeds faulted (err_pivot / err_nan) | first fault, median iteration | converged | goal "

@@ -232,7 +232,7 @@ def test_help_lists_every_parameter(_written):
             assert ("--no-" + option(f.name)[2:] if switch else option(f.name)) in text, f.name
             # None: worked out from the other parameters; the help gives the number for their defaults
             # (an application has none); False: a switch that is off
-            shown = ("none" if f.name == "app" else
+            shown = ("none" if f.name == "app" or f.default is None and getattr(core.params(), f.name) is None else
                      f"{getattr(core.params(), f.name)} (for the other options' defaults)" if f.default is None
                      else "on" if switch else "off" if f.default is False else f.default)
             assert f"default {shown}" in text, f.name

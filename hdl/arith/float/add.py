@@ -6,6 +6,7 @@ from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
+from .timing import carry_delay, lut_delay, prepare_delay, round_delays, shifter_delay, tree_levels
 from .round import ROUND_BOUNDARIES, FloatUnit, prepare_exponent, round_pack, unpack
 
 __all__ = ["FloatAdd", "FloatSub"]
@@ -74,6 +75,18 @@ class FloatAdd(FloatUnit):
             "i_valid": In(1), "i_a": In(f.width), "i_b": In(f.width),
             "o_valid": Out(1), "o_y": Out(f.width), "o_flags": Out(5),
         })
+
+    def stage_segments(self, fmt, subnormals):
+        """In order: the magnitude compare beside the exponent differences and their cap, the
+        operand selects; the alignment shift beside its lost bits and the exponent's
+        preparation; the adder; the rounding (prepared, not denormalising)."""
+        p, e = fmt.precision, fmt.exp_bits
+        return [("in", 0.0),
+                ("align", lut_delay(2) + max(carry_delay(fmt.width - 1), carry_delay(e + 1) + lut_delay(1))),
+                ("add", max(shifter_delay(p + 2), lut_delay(1 + tree_levels(p, 4)),
+                            prepare_delay(fmt, from_room=True))),
+                ("norm", carry_delay(p + 4) + lut_delay(1)),
+                *zip(_R + ("out",), round_delays(fmt, p + 4, denormalise=False, prepared=True))]
 
     @property
     def subtract(self) -> bool:

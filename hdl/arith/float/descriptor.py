@@ -38,6 +38,10 @@ def _docs() -> dict[str, Doc]:
                              "and smaller, with i_ready backpressure", "cycles",
                              "an integer in a range that depends on op and format; in binary32: "
                              f"{ranges_text('cycles_per_op')}; 1 for other ops"),
+        "target_mhz": Doc("pipeline for this clock on an ECP5-85 (nextpnr): the fewest stages the "
+                          "calibrated delay model predicts to reach it (the manifest's timing records "
+                          "the prediction); default: --stages' own default", "MHz",
+                          "a number in 10..1000; not for sin, cos and atan2"),
         "name": Doc("top-level module and file name", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }
@@ -50,5 +54,6 @@ CORE = CoreDescriptor(
     docs=_docs,
     build=lambda p: p.build(),
     fields_of=lambda p, port: p.field_list(port),
+    extra=lambda p, component: {"timing": p.timing} if p.target_mhz is not None else {},
     examples=tuple({"op": op, "name": f"fpu_{op}"} for op in OPS),
 )

@@ -6,6 +6,7 @@ from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
+from .timing import carry_delay, dsp_delay, lut_delay, product_sum_delay, round_delays, shifter_delay, tree_levels
 from .mul import partial_products, sum_partial_products
 from .round import (ROUND_BOUNDARIES, ROUND_COUNT, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
@@ -89,6 +90,26 @@ class FloatFMA(FloatUnit):
             "i_valid": In(1), "i_a": In(f.width), "i_b": In(f.width), "i_c": In(f.width),
             "o_valid": Out(1), "o_y": Out(f.width), "o_flags": Out(5),
         })
+
+    def stage_segments(self, fmt, subnormals):
+        """In order: the exponent sum and the addend's shift (two adds) and their caps,
+        beside the addend's trailing-zero count; the multiplier blocks beside the addend's
+        alignment; the sum of the partial products; the adders over the frame with the
+        exponent's preparation; the rounding, its leading-zero count cut in two."""
+        p, e = fmt.precision, fmt.exp_bits
+        low = p + 4 if subnormals == "ieee" else max(1, 6 - p)
+        frame = low + 3 * p + 4
+        shift, normalise, round_up, out = round_delays(fmt, frame, prepared=True)
+        count = lut_delay(2 + tree_levels(frame))
+        first = lut_delay(1 + tree_levels(frame) // 2)
+        return [("in", 0.0),
+                ("mul", lut_delay(3) + 2 * carry_delay(e + 3)),
+                ("mul.sum", max(dsp_delay(), shifter_delay(frame) + lut_delay(1))),
+                ("add", product_sum_delay(p) + lut_delay(1)),
+                ("norm", carry_delay(2 * p + 1) + lut_delay(2)),
+                (ROUND_COUNT, max(first, shift - count + first)),
+                (_R[0], count - first),
+                (_R[1], normalise), (_R[2], round_up), ("out", out)]
 
     def datapath(self, m, cuts):
         fmt, p = self.fmt, self.fmt.precision

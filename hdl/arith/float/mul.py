@@ -7,6 +7,8 @@ from amaranth.lib.wiring import In, Out
 
 from ..multiply import sum_rows
 from .format import FloatFormat
+from .timing import (carry_delay, dsp_delay, lut_delay, prepare_delay, product_sum_delay, round_delays,
+                     shifter_delay, tree_levels)
 from .round import (ROUND_BOUNDARIES, FloatUnit, leading_zeros, prepare_exponent, round_pack,
                     unpack)
 
@@ -182,6 +184,21 @@ class FloatMul(FloatUnit):
             "i_valid": In(1), "i_a": In(f.width), "i_b": In(f.width),
             "o_valid": Out(1), "o_y": Out(f.width), "o_flags": Out(5),
         })
+
+    def stage_segments(self, fmt, subnormals):
+        """In order: the operands' leading-zero counts (ieee) beside the exponent sum; their
+        normalising shifts and the LUT rows' selects; the multiplier blocks beside the
+        exponents' preparation; the sum of the partial products with the top bit's selects;
+        the rounding under a constant leading one."""
+        p, e = fmt.precision, fmt.exp_bits
+        ieee = subnormals == "ieee"
+        return [("in", 0.0),
+                ("subnorm", lut_delay(1) + max(lut_delay(2 + tree_levels(p)) if ieee else 0.0,
+                                               carry_delay(e + 2))),
+                ("mul", lut_delay(1) + (max(shifter_delay(p), carry_delay(e + 3)) if ieee else 0.0)),
+                ("mul.sum", max(dsp_delay(), prepare_delay(fmt))),
+                ("norm", product_sum_delay(p) + lut_delay(2)),
+                *zip(_R + ("out",), round_delays(fmt, p + 1, leading_one=True, prepared=True))]
 
     def datapath(self, m, cuts):
         fmt, p = self.fmt, self.fmt.precision

@@ -10,14 +10,45 @@ The ranges of the counts are read from the units themselves (:func:`stages_range
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ...describe import ParamError, check_name
 from .format import FLAG_NAMES, FloatFormat
-from .timing import CLOCK_MHZ
+from .timing import CLOCK_MHZ, MEASURED_MHZ, TARGET_RANGE, predicted_mhz, stages_for_target
 
 __all__ = ["FpuParams", "OPS", "CLOCK_MHZ", "cycles_per_op_range", "stages_range",
-           "ranges_text"]
+           "ranges_text", "check_target", "unit_timing", "OMIT_NONE"]
+
+#: A parameter that a generated core's header, manifest and command line leave out while it
+#: is ``None`` (so that adding it changed no core generated without it).
+OMIT_NONE = {"omit_none": True}
+
+
+def check_target(value) -> float | None:
+    """``--target-mhz``: ``None``, or a number in :data:`TARGET_RANGE` (returned as a float)."""
+    if value is None:
+        return None
+    lo, hi = TARGET_RANGE
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+        raise ParamError("target_mhz", f"must be a clock in MHz, a number in {lo:g}..{hi:g}, not {value!r}")
+    return float(value)
+
+
+def unit_timing(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1,
+                target_mhz: float | None = None, stages: int | None = None) -> tuple[int | None, float | None]:
+    """``(stages, predicted Fmax in MHz)`` of a unit by the calibrated delay model
+    (:mod:`.timing`): with ``target_mhz``, the fewest stages that reach it (or the fastest
+    plan); otherwise for ``stages`` (``None``: the default). The prediction is ``None`` for
+    an iterative sin, cos or atan2, whose measured clock :data:`~.timing.MEASURED_MHZ` gives."""
+    cls = _unit_class(op)
+    delays = cls.stage_delays(fmt, **_unit_args(op, subnormals, None, cycles_per_op))
+    if delays is None:
+        return stages, None
+    if target_mhz is not None:
+        return stages_for_target(op, delays, target_mhz)
+    if stages is None:
+        stages = cls.plan(fmt, **_unit_args(op, subnormals, None, cycles_per_op)).stages
+    return stages, predicted_mhz(op, delays[stages])
 
 #: op -> (operand ports, result is an integer, has cycles_per_op)
 OPS = {
@@ -114,6 +145,12 @@ class FpuParams:
     cycles_per_op : int
         In :func:`cycles_per_op_range`: for div and sqrt, 1 = fully pipelined, K > 1 =
         iterative, one operation per K cycles; 1 for the others.
+    target_mhz : float or None
+        A clock in MHz (ECP5-85, nextpnr) to pipeline for: ``stages`` becomes the fewest the
+        calibrated delay model (:mod:`.timing`) predicts to reach it, or the fastest plan
+        when none does; the manifest records the target and the prediction. ``None`` (the
+        default) keeps ``stages``' own default. Given both, ``stages`` must be the count the
+        target picks (the recorded parameters regenerate the same core).
     name : str
         Top-level module name.
 
@@ -129,6 +166,7 @@ class FpuParams:
     subnormals: str = "ieee"
     stages: int | None = None
     cycles_per_op: int = 1
+    target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
     name: str = "fpu"
 
     def __post_init__(self):
@@ -158,6 +196,17 @@ class FpuParams:
             what = f"{op} {fmt}" + (", ftz" if subnormals == "ftz" else "") \
                 + (f", cycles_per_op {self.cycles_per_op}" if self.cycles_per_op > 1 else "")
             raise ParamError("stages", f"must be an integer in {lo}..{hi} for {what}, not {self.stages!r}")
+        target = check_target(self.target_mhz)
+        object.__setattr__(self, "target_mhz", target)
+        if target is not None and op in MEASURED_MHZ:
+            raise ParamError("target_mhz", f"{op} has one pipeline, whose step control sets its clock "
+                                           f"(measured {MEASURED_MHZ[op]:g} MHz in binary32): it takes no target")
+        if target is not None:
+            picked, _ = unit_timing(op, fmt, subnormals, self.cycles_per_op, target)
+            if self.stages is not None and self.stages != picked:
+                raise ParamError("stages", f"{self.stages} is not the {picked} stages target_mhz {target:g} picks; "
+                                           "give one of the two")
+            object.__setattr__(self, "stages", picked)
         check_name(self.name)
         args = _unit_args(op, subnormals, self.stages, self.cycles_per_op)
         object.__setattr__(self, "stages", _unit_class(op).plan(fmt, **args).stages)
@@ -165,6 +214,13 @@ class FpuParams:
     @property
     def fmt(self) -> FloatFormat:
         return FloatFormat.parse(self.format)
+
+    @property
+    def timing(self) -> dict:
+        """The manifest's ``timing``: the target and the model's prediction (only with a target)."""
+        _, mhz = unit_timing(self.op, self.format, self.subnormals, self.cycles_per_op, stages=self.stages)
+        return {"target_mhz": self.target_mhz, "predicted_fmax_mhz": round(mhz, 1),
+                "met": mhz >= self.target_mhz, "model": "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing)"}
 
     def build(self):
         """The Amaranth unit for these parameters."""

@@ -112,6 +112,29 @@ class FloatUnit(wiring.Component):
         ``DEFAULT_STAGES`` unless the unit overrides this."""
         return type(self).PLANS, type(self).DEFAULT_STAGES
 
+    def stage_segments(self, fmt: FloatFormat, subnormals: str):
+        """The datapath as ``(boundary, delay)`` in order, by the delay model of
+        :mod:`.timing`, for a unit whose ``PLANS`` are a table; ``None`` where the unit has
+        no model (the iterative sin, cos and atan2: their step control sets the clock)."""
+        return None
+
+    @classmethod
+    def stage_delays(cls, *args, **kwargs) -> dict[int, float] | None:
+        """Stage count -> the longest stage's delay (ns) by the delay model, for every count
+        the unit the same arguments would construct can place (``stages`` is ignored); or
+        ``None`` for a unit without a model."""
+        from .timing import longest_stage
+        probe = object.__new__(cls)
+        probe._plan_only = True
+        cls.__init__(probe, *args, **kwargs)
+        plans = probe.PLANS
+        if hasattr(plans, "longest"):
+            return {k: plans.longest(k) for k in plans}
+        segments = probe.stage_segments(probe.fmt, probe.subnormals)
+        if segments is None:
+            return None
+        return {k: longest_stage(segments, plan) for k, plan in plans.items()}
+
     @property
     def fmt(self) -> FloatFormat:
         return self._fmt

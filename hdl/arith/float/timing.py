@@ -23,7 +23,8 @@ from collections.abc import Mapping
 from .format import FloatFormat
 
 __all__ = ["CLOCK_MHZ", "LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
-           "dsp_delay", "block_ram_delay", "prepare_delay", "round_delays", "StagePlans"]
+           "dsp_delay", "block_ram_delay", "prepare_delay", "round_delays", "StagePlans", "product_sum_delay",
+           "longest_stage", "CALIBRATION", "MEASURED_MHZ", "TARGET_RANGE", "predicted_mhz", "stages_for_target"]
 
 #: The clock the default stage counts are designed for: an ECP5-85, binary32. The units placed
 #: by this model meet it by the model; add, sub, mul and fma have fixed defaults, measured
@@ -173,6 +174,20 @@ class StagePlans(Mapping):
         count = stages - self._offset
         if count == 0:
             return ()
+        return tuple(self._names[j] for j in self._chosen(count) if self._names[j] not in self._hidden)
+
+    def longest(self, stages) -> float:
+        """The longest stage's delay by the model with ``stages`` registers (forced and hidden
+        boundaries included)."""
+        if stages not in self:
+            raise KeyError(stages)
+        count = stages - self._offset
+        if count == 0:
+            return self._prefix[-1]
+        chosen = self._chosen(count)
+        return max(self._cost(i, j) for i, j in zip([-1] + chosen, chosen))
+
+    def _chosen(self, count):
         # The smallest bound met with at most ``count`` registers, by bisection.
         lo, hi = 0, len(self._bounds) - 1
         while lo < hi:
@@ -184,7 +199,7 @@ class StagePlans(Mapping):
         chosen = self._latest(self._bounds[lo])
         while len(chosen) < count:
             chosen = self._split_longest(chosen)
-        return tuple(self._names[j] for j in chosen if self._names[j] not in self._hidden)
+        return chosen
 
     def _split_longest(self, chosen):
         best = None
@@ -203,3 +218,69 @@ class StagePlans(Mapping):
         index = {name: j for j, name in enumerate(self._names)}
         bound = max([budget] + [self._cost(index[n] - 1, index[n]) for n in self._forced])
         return len(self._latest(bound)) + self._offset
+
+
+def product_sum_delay(precision: int) -> float:
+    """The sum of a ``precision`` x ``precision`` product's partial products (blocks and LUT
+    rows, :func:`~.mul.partial_products`): lanes of terms that do not overlap, added pairwise
+    in a balanced tree of carry chains as wide as the product."""
+    from amaranth.hdl import Signal, Value
+
+    from .mul import partial_products
+    terms = sorted((int(name.rpartition("_")[2]), len(Value.cast(value)))
+                   for name, value in partial_products(Signal(precision), Signal(precision)).items()
+                   if name.startswith("pp"))
+    lanes: list[int] = []  # each lane's end
+    for at, width in terms:
+        free = next((i for i, end in enumerate(lanes) if end <= at), None)
+        if free is None:
+            lanes.append(at + width)
+        else:
+            lanes[free] = at + width
+    levels = math.ceil(math.log2(len(lanes))) if len(lanes) > 1 else 0
+    return levels * carry_delay(2 * precision)
+
+
+def longest_stage(segments, boundaries) -> float:
+    """The longest stage's delay when ``boundaries`` (names among ``segments``' ``(name,
+    delay)``) get the registers: the whole path for none."""
+    chosen, longest, run = set(boundaries), 0.0, 0.0
+    for name, delay in segments:
+        run += delay
+        if name in chosen:
+            longest, run = max(longest, run), 0.0
+    return max(longest, run)
+
+
+#: The model against nextpnr-ecp5: an op's clock period on an LFE5U-85F is about its
+#: ``scale`` times its longest stage by this model (routing and the flip-flops' own delays
+#: grow with the stage, and the model's figures err long by a factor that depends on the
+#: kind of logic). Each scale is the median-of-3-seeds period of the op's binary32 default
+#: over its model figure, printed by ``python -m kfgen.gen.bench_fpu --calibrate``; an op
+#: without one takes ``"other"``, the median of the others. Only ``--target-mhz`` reads it:
+#: the default stage counts do not, so a new calibration changes no default core.
+CALIBRATION = {"add": 0.80, "sub": 0.77, "mul": 0.76, "div": 0.86, "sqrt": 0.75, "fma": 0.93, "i2f": 0.45,
+               "f2i": 0.88, "exp": 0.69, "other": 0.78}
+#: Where the clock of a unit without stage choices comes from (``--target-mhz`` has nothing
+#: to pick for the iterative sin, cos and atan2: their step control sets it), MHz, binary32
+#: (``python -m kfgen.gen.bench_fpu``).
+MEASURED_MHZ = {"sin": 95.4, "cos": 93.4, "atan2": 106.0}
+#: The highest and lowest ``--target-mhz`` taken.
+TARGET_RANGE = (10.0, 1000.0)
+
+
+def predicted_mhz(op: str, longest_ns: float) -> float:
+    """The Fmax the calibrated model predicts for ``op`` with a longest stage of ``longest_ns``."""
+    return 1000.0 / (CALIBRATION.get(op, CALIBRATION["other"]) * longest_ns)
+
+
+def stages_for_target(op: str, delays: Mapping[int, float], target_mhz: float) -> tuple[int, float]:
+    """``(stages, predicted MHz)``: the fewest of ``delays`` (stage count -> longest stage,
+    :meth:`~.round.FloatUnit.stage_delays`) whose predicted Fmax reaches ``target_mhz``, or,
+    when none does, the fewest with the highest prediction."""
+    options = sorted((k, predicted_mhz(op, d)) for k, d in delays.items() if k > 0)
+    for k, mhz in options:
+        if mhz >= target_mhz:
+            return k, mhz
+    best = max(mhz for _, mhz in options)
+    return next((k, mhz) for k, mhz in options if mhz == best)
