@@ -77,13 +77,12 @@ class Runner:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError as exc:  # the [dev] extras bring it
-            raise SystemExit(f"error: Dask distributed is not installed ({exc}); make dev installs it, "
-                             "or run with --serial") from None
+            _usage(f"Dask distributed is not installed ({exc}); make dev installs it, or run with --serial")
         if scheduler:
             try:
-                self.client = Client(scheduler, timeout="20s")
-            except OSError as exc:
-                raise SystemExit(f"error: no Dask scheduler at {scheduler} ({exc})") from None
+                self.client = Client(scheduler, timeout="10s")
+            except (OSError, ValueError, TypeError) as exc:
+                _usage(f"--scheduler: no Dask scheduler answers at {scheduler!r} ({str(exc).splitlines()[0]})")
             n = len(self.client.scheduler_info().get("workers", {}))
             self.where = f"the Dask scheduler {scheduler} ({n} worker{'s' * (n != 1)})"
         else:
@@ -92,7 +91,7 @@ class Runner:
             # worker's memory is what its tools use. No memory limit: the tools' memory is in
             # their own processes, which the nanny does not see anyway.
             self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        memory_limit=0, dashboard_address=None)
+                                        memory_limit=0, dashboard_address=":0")
             self.client = Client(self.cluster)
             self.where = f"a Dask LocalCluster of {n} worker process{'es' * (n != 1)}"
 
@@ -109,6 +108,12 @@ class Runner:
             self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+
+
+def _usage(message: str):
+    """A one-line error and exit code 2, as every command line of kfgen gives."""
+    print(f"error: {message}", file=sys.stderr)
+    raise SystemExit(2)
 
 
 def add_arguments(ap) -> None:

@@ -18,7 +18,7 @@ CYCLES_DEFINITION = ("clock edges from the edge that takes the W beat writing CT
 
 def engine_docs() -> dict[str, Doc]:
     """The Docs of the parameters every engine core (UKF, IMM) shares: format, irq,
-    address_width, name."""
+    address_width, target_mhz, name."""
     return {
         "format": Doc("float format of every buffer word and of the arithmetic", "",
                       f"binary16, bfloat16, binary32, binary64 or eEmM, at most {FORMAT_WIDTH_MAX} bits "
@@ -27,9 +27,22 @@ def engine_docs() -> dict[str, Doc]:
                    "on or off (in a --config file: irq = true or false)"),
         "address_width": Doc("width of the AXI byte address (by default the smallest that holds "
                              "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
+        "target_mhz": Doc("pipeline the FMA, divider, square root and exponential for this clock on an ECP5-85 "
+                          "(nextpnr): each gets the fewest stages the calibrated delay model predicts to reach "
+                          "it, the schedule follows, and the manifest's timing records the prediction (the "
+                          "engine's own paths are not pipelined by it); default: the units' own stages", "MHz",
+                          "a number in 10..1000"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }
+
+
+def engine_timing(params) -> dict:
+    """``{"timing": ...}`` for the manifest of an engine core with a ``target_mhz``, else ``{}``."""
+    if params.target_mhz is None:
+        return {}
+    from .machine import machine, timing
+    return {"timing": timing(params, machine(params))}
 
 
 def engine_waivers(params) -> str:

@@ -11,7 +11,39 @@ from ..arith.float.sqrt import FloatSqrt
 from ..arith.float.trig import FloatAtan2, FloatCos, FloatSin
 from ..linalg.schedule import Machine, schedule
 
-__all__ = ["machine", "schedules"]
+__all__ = ["machine", "schedules", "timing", "ENGINE_MHZ"]
+
+#: The clock of the engine's own paths beside its units, measured (ECP5-85, nextpnr, UKF core
+#: at P = 1, docs/ukf.md): a program-store DP16KD's word into the fetch register (9.4 ns) and
+#: a bus read's address into the AXI front end (9.9 ns). ``--target-mhz`` pipelines the units
+#: only, so a core's predicted Fmax is at most this.
+ENGINE_MHZ = 101.0
+
+
+def _target_stages(params, op: str, per_op: int, default):
+    """The stages of ``op``'s unit for the core's ``target_mhz`` (``default`` without one)."""
+    target = getattr(params, "target_mhz", None)
+    if target is None:
+        return default
+    from ..arith.float.params import unit_timing
+    return unit_timing(op, params.fmt, "ieee", per_op, target)[0]
+
+
+def timing(params, mc: Machine) -> dict:
+    """The manifest's ``timing`` of an engine core with a ``target_mhz``: the target, each
+    unit's stages and predicted Fmax by the calibrated model, and the core's prediction (the
+    slowest unit, at most :data:`ENGINE_MHZ`)."""
+    from ..arith.float.params import unit_timing
+    per_op = {"fma": 1, "div": mc.div_interval, "sqrt": mc.sqrt_interval, "exp": 1}
+    units = {}
+    for op, latency in (("fma", mc.fma_latency), ("div", mc.div_latency), ("sqrt", mc.sqrt_latency),
+                        ("exp", mc.exp_latency)):
+        _, mhz = unit_timing(op, params.fmt, "ieee", per_op[op], stages=latency)
+        units[op] = {"stages": latency, "predicted_fmax_mhz": round(mhz, 1)}
+    predicted = min([ENGINE_MHZ] + [u["predicted_fmax_mhz"] for u in units.values()])
+    return {"target_mhz": params.target_mhz, "predicted_fmax_mhz": predicted,
+            "met": predicted >= params.target_mhz, "units": units, "engine_mhz": ENGINE_MHZ,
+            "model": "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing; the engine's own paths measured)"}
 
 
 def _sqrt_stages(fmt, per_op):
@@ -31,11 +63,14 @@ def machine(params) -> Machine:
     operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
     pipelined (the square root with its rounding's select registered); the exponential at its
     default pipeline and the iterative sin, cos and atan2 (a core builds them only when its
-    programs use them)."""
+    programs use them). A core's ``target_mhz`` (if it has one set) picks the FMA's, divider's,
+    square root's and exponential's stages instead (:func:`timing`)."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
-    div = FloatDiv.plan(fmt, cycles_per_op=per_op[FloatDiv])
-    sqrt = FloatSqrt.plan(fmt, cycles_per_op=per_op[FloatSqrt], stages=_sqrt_stages(fmt, per_op[FloatSqrt]))
+    div = FloatDiv.plan(fmt, cycles_per_op=per_op[FloatDiv],
+                        stages=_target_stages(params, "div", per_op[FloatDiv], None))
+    sqrt = FloatSqrt.plan(fmt, cycles_per_op=per_op[FloatSqrt],
+                          stages=_target_stages(params, "sqrt", per_op[FloatSqrt], _sqrt_stages(fmt, per_op[FloatSqrt])))
     trig = {}
     for name, cls in (("sin", FloatSin), ("cos", FloatCos), ("atan2", FloatAtan2)):
         try:
@@ -43,9 +78,11 @@ def machine(params) -> Machine:
         except ValueError:  # a format it cannot take: a program that uses it fails to build
             continue
         trig |= {f"{name}_latency": plan.latency, f"{name}_interval": plan.initiation_interval}
-    return Machine(params.pes, FloatFMA.plan(fmt).latency, div.latency, sqrt.latency, banks=params.banks,
+    fma = FloatFMA.plan(fmt, stages=_target_stages(params, "fma", 1, None))
+    exp = FloatExp.plan(fmt, stages=_target_stages(params, "exp", 1, None))
+    return Machine(params.pes, fma.latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval,
-                   exp_latency=FloatExp.plan(fmt).latency, **trig)
+                   exp_latency=exp.latency, **trig)
 
 
 def schedules(steps: dict, mc: Machine) -> dict:

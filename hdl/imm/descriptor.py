@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
-from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
+from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
 from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
 from .regmap import CYCLES
@@ -40,6 +40,7 @@ def _extra(params, core) -> dict:
     mc = sched.machine
     return {
         **engine_manifest(core),
+        **engine_timing(params),
         "cycles_keys": dict(CYCLES),
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),

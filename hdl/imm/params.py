@@ -8,9 +8,10 @@ channel conditions, a constant-acceleration model of SNR and SIR (n = 6), both m
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 from ..arith.float.format import FloatFormat
+from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
 from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
@@ -47,6 +48,13 @@ class ImmParams:
     irq : bool
     address_width : int or None
         AXI byte-address width; ``None``: the smallest that holds the map.
+    target_mhz : float or None
+        A clock in MHz (ECP5-85, nextpnr) to pipeline the engine's units for: the FMA's,
+        divider's, square root's and exponential's stages become the fewest the calibrated
+        delay model predicts to reach it (:func:`kfgen.hdl.engine.machine.timing`; the
+        schedule follows their latencies). The engine's own paths are not pipelined by it, so
+        the prediction is at most :data:`~kfgen.hdl.engine.machine.ENGINE_MHZ`. ``None`` (the
+        default): the units' defaults.
     name : str
         Top-level module name.
     """
@@ -60,9 +68,11 @@ class ImmParams:
     format: str = "binary32"
     irq: bool = True
     address_width: int | None = None
+    target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
     name: str = "imm"
 
     def __post_init__(self):
+        object.__setattr__(self, "target_mhz", check_target(self.target_mhz))
         for key, lo, hi, what in (("models", 2, MODELS_MAX, "models R"), ("states", 1, STATES_MAX, "states n"),
                                   ("measurements", 1, D_MAX, "measurements d")):
             v = getattr(self, key)

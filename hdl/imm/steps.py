@@ -4,9 +4,6 @@ its manifest and the golden model in the tests cannot disagree."""
 
 from __future__ import annotations
 
-import dataclasses
-
-from ..arith.float.exp import FloatExp
 from ..engine.machine import machine as engine_machine
 from ..engine.machine import schedules as engine_schedules
 from ..engine.params import check_work
@@ -22,8 +19,8 @@ def programs(params) -> ImmPrograms:
 
 def machine(params):
     """The engine's (:func:`kfgen.hdl.engine.machine.machine`: P PEs, ``params.banks`` banks, the
-    divider and square root of ``params.div_sqrt``), with the exponential's pipeline."""
-    return dataclasses.replace(engine_machine(params), exp_latency=FloatExp.plan(params.fmt).latency)
+    divider and square root of ``params.div_sqrt``, the exponential's pipeline)."""
+    return engine_machine(params)
 
 
 def schedules(params, progs: ImmPrograms | None = None) -> dict:

@@ -32,6 +32,10 @@ def _docs() -> dict[str, Doc]:
         "div_latency": Doc("divider latency: the stages of every FloatDiv", "cycles",
                            "an integer in a range that depends on the format and div_cycles_per_op; in "
                            f"binary32: {_div_latency_text()}"),
+        "target_mhz": Doc("pipeline the units whose latency is not given for this clock on an ECP5-85 "
+                          "(nextpnr): the fewest stages the calibrated delay model predicts to reach it "
+                          "(the manifest's timing records the prediction); default: the units' own stages",
+                          "MHz", "a number in 10..1000"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),
     }
@@ -93,6 +97,7 @@ def _extra(params: SchurParams, core) -> dict:
         "units": {op: prog.count(op) for op in ("mul", "add", "sub", "div")},
         "unit_latencies": {"mul": params.mul_latency, "add": params.add_latency, "sub": params.add_latency,
                            "div": params.div_latency, "div_cycles_per_op": params.div_cycles_per_op},
+        **({"timing": params.timing} if params.target_mhz is not None else {}),
     }
 
 

@@ -11,10 +11,10 @@ divider cycles per operation, divider latency), and each is a floating-point uni
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..arith.float.format import FloatFormat
-from ..arith.float.params import FpuParams, cycles_per_op_range, stages_range
+from ..arith.float.params import OMIT_NONE, FpuParams, check_target, cycles_per_op_range, stages_range, unit_timing
 from ..describe import ParamError, check_name
 from .program import SIZE_MAX
 
@@ -48,8 +48,14 @@ class SchurParams:
     name : str
         Top-level module name.
 
+    target_mhz : float or None
+        A clock in MHz (ECP5-85, nextpnr): each latency left ``None`` becomes the fewest stages
+        the calibrated delay model predicts to reach it (:func:`~kfgen.hdl.arith.float.params.unit_timing`);
+        the manifest's ``timing`` records the predictions. ``None``: the units' defaults.
+
     A latency left ``None`` is the unit's default (designed for 100 MHz on an ECP5-85 in
-    binary32) and replaced by that number, so the parameters record what was built.
+    binary32), or the target's choice, and replaced by that number, so the parameters record
+    what was built.
 
     Raises
     ------
@@ -64,6 +70,7 @@ class SchurParams:
     add_latency: int | None = None
     div_cycles_per_op: int = 1
     div_latency: int | None = None
+    target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
     name: str = "schur"
 
     def __post_init__(self):
@@ -80,15 +87,33 @@ class SchurParams:
             raise ParamError("div_cycles_per_op", f"must be an integer in {lo}..{hi} for div {fmt}, "
                                                   f"not {self.div_cycles_per_op!r}")
         k = self.div_cycles_per_op
+        target = check_target(self.target_mhz)
+        object.__setattr__(self, "target_mhz", target)
         for key, op, cpo in (("mul_latency", "mul", 1), ("add_latency", "add", 1), ("div_latency", "div", k)):
             value = getattr(self, key)
             lo, hi = stages_range(op, fmt, "ieee", cpo)
             if value is not None and not _in_range(value, lo, hi):
                 what = f"{op} {fmt}" + (f", cycles_per_op {cpo}" if cpo > 1 else "")
                 raise ParamError(key, f"must be an integer in {lo}..{hi} for {what}, not {value!r}")
+            if value is None and target is not None:  # a latency given stays; the rest follow the target
+                value = unit_timing(op, fmt, "ieee", cpo, target)[0]
             built = FpuParams(op=op, format=fmt, stages=value, cycles_per_op=cpo).stages
             object.__setattr__(self, key, built)
         check_name(self.name)
+
+    @property
+    def timing(self) -> dict:
+        """The manifest's ``timing`` (only with a target): the target, each unit's stages and
+        predicted Fmax by the calibrated model (:mod:`kfgen.hdl.arith.float.timing`), and the
+        core's prediction, its slowest unit's."""
+        units = {}
+        for op, cpo in (("mul", 1), ("add", 1), ("div", self.div_cycles_per_op)):
+            stages = self.latencies[op]
+            units[op] = {"stages": stages, "predicted_fmax_mhz":
+                         round(unit_timing(op, self.format, "ieee", cpo, stages=stages)[1], 1)}
+        predicted = min(u["predicted_fmax_mhz"] for u in units.values())
+        return {"target_mhz": self.target_mhz, "predicted_fmax_mhz": predicted, "met": predicted >= self.target_mhz,
+                "units": units, "model": "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing); the control is not modelled"}
 
     @property
     def fmt(self) -> FloatFormat:

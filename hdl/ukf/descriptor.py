@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
-from ..engine.descriptor import engine_docs, engine_manifest, engine_waivers
+from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
 from .params import SIZE_MAX, UkfParams
 from .regmap import steps
 
@@ -74,6 +74,7 @@ def _streams(core) -> dict:
 def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
+        **engine_timing(params),
         **_streams(core),
         "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
                         for v in steps(params)},

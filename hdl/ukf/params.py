@@ -11,9 +11,10 @@ the same way. Any reading of the four numbers gives M = 20.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 from ..arith.float.format import FloatFormat
+from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
 from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
 
@@ -94,6 +95,13 @@ class UkfParams:
         Width of the AXI address; ``None`` is replaced by the smallest that holds the map
         (:func:`kfgen.hdl.ukf.regmap.ukf_map`). A wider one leaves the rest of the aperture
         unmapped (SLVERR).
+    target_mhz : float or None
+        A clock in MHz (ECP5-85, nextpnr) to pipeline the engine's units for: the FMA's,
+        divider's, square root's and exponential's stages become the fewest the calibrated
+        delay model predicts to reach it (:func:`kfgen.hdl.engine.machine.timing`; the
+        schedule follows their latencies). The engine's own paths are not pipelined by it, so
+        the prediction is at most :data:`~kfgen.hdl.engine.machine.ENGINE_MHZ`. ``None`` (the
+        default): the units' defaults.
     name : str
         Top-level module name.
 
@@ -118,9 +126,11 @@ class UkfParams:
     streams: bool = False
     irq: bool = True
     address_width: int | None = None
+    target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
     name: str = "ukf"
 
     def __post_init__(self):
+        object.__setattr__(self, "target_mhz", check_target(self.target_mhz))
         for key, what in _SIZES:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= SIZE_MAX:

@@ -62,6 +62,11 @@ ELSEWHERE = {
         "tests/common/test_fusesoc.py::test_synth_target",
     "kfgen fusesoc --cores-root cores run --setup --target vivado kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_vivado_setup_writes_the_project",
+    ".venv/bin/dask scheduler --port 8786 &": "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
+    ".venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 1 --nthreads 1 &":
+        "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
+    ".venv/bin/python -m kfgen.gen.bench_fpu --ops f2i --formats binary16 --no-pnr --scheduler tcp://127.0.0.1:8786 "
+    "-o build/bench_dask": "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
 }
 
 #: Run here under ``make test-full`` (a Verilator build or a place and route each: minutes).

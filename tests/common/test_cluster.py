@@ -1,0 +1,125 @@
+"""The benches' runner (kfgen.sim.cluster): the same results in this process, on a LocalCluster
+and on a scheduler started apart, with dependencies followed and a task's failure kept in its
+row; a bad scheduler address is a one-line error."""
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from kfgen.sim.cluster import Runner, add_arguments, collect, open_runner, runner_argv, timed
+
+
+def square(x):
+    return {"value": x * x, "pid": os.getpid()}
+
+
+def plus(a, b):
+    return {"value": a["value"] + b, "pid": os.getpid()}
+
+
+def broken(x):
+    raise RuntimeError(f"nextpnr failed on {x}\nsecond line")
+
+
+def _run(runner):
+    rows = [{"name": "a"}, {"name": "b"}, {"name": "c"}]
+    first = runner.submit(square, 3, name="square")
+    seen = []
+    collect([(rows[0], "sum", runner.submit(plus, first, 4)),  # after its dependency
+             (rows[1], "sq", runner.submit(timed, square, 5)),
+             (rows[2], "pnr", runner.submit(broken, "x", name="broken"))],
+            label=lambda r: r["name"], each=lambda r: seen.append(r["name"]))
+    return rows, seen
+
+
+def _check(rows, seen, here: bool):
+    assert rows[0]["value"] == 13 and rows[1]["value"] == 25
+    assert rows[1]["sq_seconds"] >= 0 and "seconds" not in rows[1]
+    assert rows[2]["pnr_error"] == "RuntimeError: nextpnr failed on x", "the failure's first line, in its row"
+    assert sorted(seen) == ["a", "b", "c"]
+    assert (rows[0]["pid"] == os.getpid()) == here, "in this process only when serial"
+
+
+def test_serial_runs_here():
+    runner = Runner(serial=True)
+    _check(*_run(runner), here=True)
+
+
+def test_local_cluster():
+    """A LocalCluster the runner starts: the same rows, computed in its worker process."""
+    with open_runner(argparse.Namespace(workers=1)) as runner:
+        assert "LocalCluster of 1 worker process" in runner.where
+        _check(*_run(runner), here=False)
+
+
+#: docs/benchmarks.md's commands for a cluster started apart (its own scheduler and worker).
+SCHEDULER_DOCS = (".venv/bin/dask scheduler --port 8786 &",
+                  ".venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 1 --nthreads 1 &",
+                  ".venv/bin/python -m kfgen.gen.bench_fpu --ops f2i --formats binary16 --no-pnr "
+                  "--scheduler tcp://127.0.0.1:8786 -o build/bench_dask")
+
+
+def test_scheduler_commands_in_the_docs(tmp_path):
+    """The commands as docs/benchmarks.md gives them (the work directory moved): a scheduler and
+    a worker started apart, and a bench whose synthesis runs on that worker."""
+    import shlex
+    import subprocess
+
+    from helpers import ROOT
+
+    text = (ROOT / "docs" / "benchmarks.md").read_text()
+    assert all(c in text for c in SCHEDULER_DOCS)
+    venv = Path(sys.executable).parent
+    daemons = []
+    try:
+        for command in SCHEDULER_DOCS[:2]:
+            argv = shlex.split(command.rstrip(" &"))
+            daemons.append(subprocess.Popen([str(venv / Path(argv[0]).name), *argv[1:]], cwd=tmp_path,
+                                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        argv = shlex.split(SCHEDULER_DOCS[2])
+        argv[-1] = str(tmp_path / "bench_dask")
+        # (the tasks wait at the scheduler until the worker has joined)
+        proc = subprocess.run([sys.executable, *argv[1:]], capture_output=True, text=True, timeout=300)
+    finally:
+        for d in daemons:
+            d.terminate()
+            d.wait(timeout=30)
+    assert proc.returncode == 0, proc.stderr
+    assert "jobs run on the Dask scheduler tcp://127.0.0.1:8786" in proc.stderr
+    assert "| f2i | binary16 |" in proc.stdout and (tmp_path / "bench_dask" / "bench_fpu.json").exists()
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--scheduler", "tcp://127.0.0.1:9"], "--scheduler: no Dask scheduler answers at 'tcp://127.0.0.1:9'"),
+    (["--workers", "0"], "must be at least 1"),
+    (["--jobs", "x"], "expected a whole number"),
+])
+def test_bad_runner_options(capsys, argv, says):
+    from kfgen.gen import bench_fpu
+
+    with pytest.raises(SystemExit) as exc:
+        bench_fpu.main(["--ops", "f2i", "--formats", "binary16", "--no-pnr", *argv])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and says in err.strip().splitlines()[-1], err
+
+
+@pytest.mark.parametrize("module", ["bench", "bench_castella", "bench_fpu", "bench_imm", "bench_schur", "bench_sqrt",
+                                    "bench_ukf", "bench_timing"])
+def test_options_on_every_bench(capsys, module):
+    import importlib
+
+    with pytest.raises(SystemExit) as exc:
+        importlib.import_module(f"kfgen.gen.{module}").main(["--help"])
+    out = capsys.readouterr().out
+    assert exc.value.code == 0 and "--scheduler ADDRESS" in out and "--serial" in out, module
+
+
+def test_jobs_is_workers():
+    ap = argparse.ArgumentParser()
+    add_arguments(ap)
+    assert ap.parse_args(["--jobs", "3"]).workers == 3, "--jobs stays, as --workers"
+    args = ap.parse_args(["--scheduler", "tcp://h:8786", "--workers", "2", "--serial"])
+    assert runner_argv(args) == ["--scheduler=tcp://h:8786", "--workers=2", "--serial"], "what a bench passes on"
