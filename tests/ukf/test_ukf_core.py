@@ -100,6 +100,8 @@ CONFIGURATIONS = [
     pytest.param([*SMALL, "--form", "sqrt", "--pes", "2"], id="small_sqrt_p2"),
     pytest.param(["--form", "sqrt", "--pes", "2"], id="m20_sqrt_p2", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary16", "--pes", "3"], id="small_binary16_p3", marks=pytest.mark.full),
+    # --target-mhz: the FMA, divider and square root at the stages a target picks, the schedule after them
+    pytest.param([*SMALL, "--target-mhz", "75", "--pes", "2"], id="small_t75_p2", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary64", "--pes", "3"], id="small_binary64_p3", marks=pytest.mark.full),
     pytest.param(["--pes", "5"], id="m20_p5", marks=pytest.mark.full),
     pytest.param(["--pes", "10"], id="m20_p10", marks=pytest.mark.full),
