@@ -191,10 +191,9 @@ def described():
     """``described(core, **params)``: the manifest ``kfgen CORE ...`` writes, built without
     emitting the Verilog (the emission is the slow part, and the manifest does not depend on
     it), once per configuration."""
-    import dataclasses
-
     from kfgen.gen.cores import discover
     from kfgen.gen.manifest import manifest as build_manifest
+    from kfgen.gen.output import recorded
 
     cores, made = discover(), {}
 
@@ -205,7 +204,7 @@ def described():
             p = core.params(**params)
             component = core.build(p)
             made[key] = json.loads(json.dumps(build_manifest(
-                core.name, p.name, dataclasses.asdict(p), component, lambda port: core.fields_of(p, port),
+                core.name, p.name, recorded(p), component, lambda port: core.fields_of(p, port),
                 core.extra(p, component))))
         return made[key]
     return get

@@ -158,7 +158,7 @@ def test_fpu_bench_table(tmp_path):
     import sys
 
     proc = subprocess.run([sys.executable, "-m", "kfgen.gen.bench_fpu", "--ops", "f2i", "--formats", "binary16",
-                           "--no-pnr", "--jobs", "1", "-o", str(tmp_path)], capture_output=True, text=True)
+                           "--no-pnr", "--serial", "-o", str(tmp_path)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     rows = json.loads((tmp_path / "bench_fpu.json").read_text())
     manifest = json.loads((tmp_path / "fpu_f2i_binary16" / "fpu_f2i_binary16.json").read_text())

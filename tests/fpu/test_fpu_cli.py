@@ -174,7 +174,8 @@ def test_every_spelling_gives_the_same_bytes(tmp_path, core):
             (tmp_path / "spelling.toml").write_text(args[1])
             args = ["--config", tmp_path / "spelling.toml"]
         out = tmp_path / str(k)
-        kfgen("fpu", *args, "--name", "u", "-o", out)
+        proc = kfgen_in_process("fpu", *args, "--name", "u", "-o", out)
+        assert proc.returncode == 0, proc.stderr
         outputs.append({name: (out / name).read_bytes() for name in ("u.v", "u.vlt", "u.json")})
     assert all(files == outputs[0] for files in outputs[1:])
     recorded = json.loads(outputs[0]["u.json"])["parameters"]

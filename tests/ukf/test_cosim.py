@@ -118,7 +118,8 @@ def test_tracker(build_root, processor, beats, wait):
         assert np.max(np.abs(d["estimates"] - ref)) < 1e-9 * max(1.0, np.max(np.abs(ref)))
 
 
-@pytest.mark.parametrize("fmt,form", [("binary32", "ldl"), ("binary64", "ldl"), ("binary16", "ldl"), ("binary32", "sqrt")])
+@pytest.mark.parametrize("fmt,form", [("binary32", "ldl"), pytest.param("binary64", "ldl", marks=pytest.mark.full),
+                                      pytest.param("binary16", "ldl", marks=pytest.mark.full), ("binary32", "sqrt")])
 def test_c_driver_builds(tmp_path, fmt, form):
     """The C driver compiles as C99 with every warning an error, both for a bare-metal
     processor (volatile MMIO) and with the hooks (the square-root form's with its Cholesky
@@ -317,7 +318,7 @@ def test_pendulum_example_cosimulates(pendulum_work):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("cosim_pendulum")
-@pytest.mark.parametrize("processor", ["python", "c"])
+@pytest.mark.parametrize("processor", [pytest.param("python", marks=pytest.mark.full), "c"])
 def test_pendulum_fault(pendulum_work, tmp_path, processor):
     """A numerical fault in the core (a measurement beyond binary32 at iteration 2): one line
     naming the iteration, the step and the bit, exit 3, from either processor; the app given
