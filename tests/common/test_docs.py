@@ -39,6 +39,7 @@ RUN_HERE = {
     "kfgen ukf --app nanosat:Nanosat --on-chip -o out/ukf_on_chip",
     "kfgen ukf --app nanosat:Nanosat --on-chip --streams -o out/ukf_streams",
     "kfgen ukf --app nanosat:NanosatPrinted --on-chip --form sqrt -o out/ukf_sqrt",
+    "kfgen fpu --op fma --target-mhz 125 -o out/fma125",
 }
 #: Of those, the one that needs the example application docs/examples/pendulum.py: run alone.
 PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"

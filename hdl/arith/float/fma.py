@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
 from .timing import carry_delay, dsp_delay, lut_delay, product_sum_delay, round_delays, shifter_delay, tree_levels
 from .mul import partial_products, sum_partial_products
-from .round import (ROUND_BOUNDARIES, ROUND_COUNT, FloatUnit, leading_zeros, prepare_exponent,
+from .round import (ROUND_BOUNDARIES, ROUND_COUNT, ROUND_UP, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
 
 __all__ = ["FloatFMA"]
 
 _R = ROUND_BOUNDARIES  # round.shift, round.round, round.select
+#: The boundary after the exponent adds (with the first half of the addend's trailing-zero
+#: count), in the plans of 11 stages and more: the "mul" stage's logic in two.
+EXP_CUT = "fma.exp"
+#: The boundary after the first level of the partial products' adder tree, in the plans of 12
+#: stages and more: the "add" stage's carry chains in two.
+SUM_CUT = "fma.sum"
 
 
 class FloatFMA(FloatUnit):
@@ -81,6 +89,10 @@ class FloatFMA(FloatUnit):
         8: ("mul", "mul.sum", "add", "norm", _R[0], _R[1], _R[2], "out"),
         9: ("mul", "mul.sum", "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
         10: ("in", "mul", "mul.sum", "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
+        11: ("in", EXP_CUT, "mul", "mul.sum", "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
+        12: ("in", EXP_CUT, "mul", "mul.sum", SUM_CUT, "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
+        13: ("in", EXP_CUT, "mul", "mul.sum", SUM_CUT, "add", "norm", ROUND_COUNT, _R[0], _R[1], ROUND_UP, _R[2],
+             "out"),
     }
     DEFAULT_STAGES = 9
 
@@ -92,8 +104,8 @@ class FloatFMA(FloatUnit):
         })
 
     def stage_segments(self, fmt, subnormals):
-        """In order: the exponent sum and the addend's shift (two adds) and their caps,
-        beside the addend's trailing-zero count; the multiplier blocks beside the addend's
+        """In order: the exponent sum (beside the addend's trailing-zero count, whose first
+        half goes with it); the addend's shift from it and their caps; the multiplier blocks beside the addend's
         alignment; the sum of the partial products; the adders over the frame with the
         exponent's preparation; the rounding, its leading-zero count cut in two."""
         p, e = fmt.precision, fmt.exp_bits
@@ -103,13 +115,15 @@ class FloatFMA(FloatUnit):
         count = lut_delay(2 + tree_levels(frame))
         first = lut_delay(1 + tree_levels(frame) // 2)
         return [("in", 0.0),
-                ("mul", lut_delay(3) + 2 * carry_delay(e + 3)),
+                (EXP_CUT, lut_delay(1) + carry_delay(e + 3)),
+                ("mul", carry_delay(e + 3) + lut_delay(2)),
                 ("mul.sum", max(dsp_delay(), shifter_delay(frame) + lut_delay(1))),
-                ("add", product_sum_delay(p) + lut_delay(1)),
+                (SUM_CUT, min(product_sum_delay(p), carry_delay(2 * p))),
+                ("add", product_sum_delay(p) - min(product_sum_delay(p), carry_delay(2 * p)) + lut_delay(1)),
                 ("norm", carry_delay(2 * p + 1) + lut_delay(2)),
                 (ROUND_COUNT, max(first, shift - count + first)),
                 (_R[0], count - first),
-                (_R[1], normalise), (_R[2], round_up), ("out", out)]
+                (_R[1], normalise), (ROUND_UP, round_up - lut_delay(3)), (_R[2], lut_delay(3)), ("out", out)]
 
     def datapath(self, m, cuts):
         fmt, p = self.fmt, self.fmt.precision
@@ -129,25 +143,48 @@ class FloatFMA(FloatUnit):
         # (Two adds deep: the constant goes with the addend's exponent.)
         offset = p + 4 - fmt.bias
         prod_biased = cuts.wire("prod_biased", a.biased + b.biased)
-        shift = cuts.wire("shift", prod_biased - (c.biased - offset))
-        at_top = cuts.wire("at_top", a.is_zero | b.is_zero | shift[-1] & ~c.is_zero)
+        flags = dict(is_nan=a.is_nan | b.is_nan | c.is_nan | zero_inf | inf_inf,
+                     is_inf=prod_inf | c.is_inf,
+                     inf_sign=Mux(prod_inf, prod_sign, c.sign),
+                     invalid=a.is_snan | b.is_snan | c.is_snan | zero_inf | inf_inf)
         # From frame - 2 places on the addend is all sticky: a shift with a bit set above
         # those counting to frame - 2 becomes the largest shift they count to.
         bits = (frame - 2).bit_length()
-        shift = Mux(at_top, 0, Mux(shift[bits:].any(), (1 << bits) - 1, shift[:bits]))
-        # The addend's bits shifted out of the frame are nonzero when its lowest one is among
-        # them: the sticky bit is a compare with its trailing zeros, beside the shifter.
-        tail = leading_zeros(cuts, cuts.wire("sig_c_reversed", c.sig[::-1]), "tz")
-        v = cuts("mul", sig_a=a.sig, sig_b=b.sig, sig_c=c.sig, shift=shift,
-                 tail=tail, c_nonzero=~c.is_zero,
+        if cuts.chooses(EXP_CUT):
+            # A stage of its own for the exponent adds, beside the first half of the addend's
+            # trailing-zero count: the shift is then one subtract from registers.
+            held = {}
+
+            def exp_cut(values):
+                r = cuts(EXP_CUT, **values, prod_biased=prod_biased, c_room=c.biased - offset,
+                         c_biased=c.biased, sig_a=a.sig, sig_b=b.sig, sig_c=c.sig,
+                         zero_ab=a.is_zero | b.is_zero, zero_c=c.is_zero, prod_sign=prod_sign,
+                         c_sign=c.sign, **flags)
+                held.update(vars(r))
+                return {key: held[key] for key in values}
+
+            tail = leading_zeros(cuts, cuts.wire("sig_c_reversed", c.sig[::-1]), "tz", cut=exp_cut)
+            r = SimpleNamespace(**held)
+            shift = cuts.wire("shift", r.prod_biased - r.c_room)
+            at_top = cuts.wire("at_top", r.zero_ab | shift[-1] & ~r.zero_c)
+            shift = Mux(at_top, 0, Mux(shift[bits:].any(), (1 << bits) - 1, shift[:bits]))
+            prod_biased, c_biased, prod_sign, c_sign = r.prod_biased, r.c_biased, r.prod_sign, r.c_sign
+            sig_a, sig_b, sig_c, zero_c = r.sig_a, r.sig_b, r.sig_c, r.zero_c
+            flags = {key: getattr(r, key) for key in flags}
+        else:
+            shift = cuts.wire("shift", prod_biased - (c.biased - offset))
+            at_top = cuts.wire("at_top", a.is_zero | b.is_zero | shift[-1] & ~c.is_zero)
+            shift = Mux(at_top, 0, Mux(shift[bits:].any(), (1 << bits) - 1, shift[:bits]))
+            # The addend's bits shifted out of the frame are nonzero when its lowest one is
+            # among them: the sticky bit is a compare with its trailing zeros, beside the shifter.
+            tail = leading_zeros(cuts, cuts.wire("sig_c_reversed", c.sig[::-1]), "tz")
+            c_biased, c_sign, sig_a, sig_b, sig_c, zero_c = c.biased, c.sign, a.sig, b.sig, c.sig, c.is_zero
+        v = cuts("mul", sig_a=sig_a, sig_b=sig_b, sig_c=sig_c, shift=shift,
+                 tail=tail, c_nonzero=~zero_c,
                  # Room above emin of the frame's top bit: it weighs 2**(ec + 1) anchored to
                  # the addend, 2**(ea + eb + 1 + p + 4) to the product.
-                 room=Mux(at_top, c.biased, prod_biased + offset),
-                 prod_sign=prod_sign, c_sign=c.sign,
-                 is_nan=a.is_nan | b.is_nan | c.is_nan | zero_inf | inf_inf,
-                 is_inf=prod_inf | c.is_inf,
-                 inf_sign=Mux(prod_inf, prod_sign, c.sign),
-                 invalid=a.is_snan | b.is_snan | c.is_snan | zero_inf | inf_inf)
+                 room=Mux(at_top, c_biased, prod_biased + offset),
+                 prod_sign=prod_sign, c_sign=c_sign, **flags)
 
         # Beside the multipliers: the addend's alignment, from the top of the frame (bits
         # frame - 2 down to 1) with the sticky bit under it.
@@ -164,10 +201,23 @@ class FloatFMA(FloatUnit):
         # bits only.
         addend = cuts.wire("addend", Mux(v.sub, ~v.addend, v.addend))
         top = low + 2 * p  # the bits above the product's
-        v = cuts("add", product=sum_partial_products(v, 2 * p), addend=addend,
-                 carry=v.sub & addend[:low].all(), above=addend[top:] + 1,
-                 room=v.room, sub=v.sub, prod_sign=v.prod_sign, c_sign=v.c_sign,
-                 is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign, invalid=v.invalid)
+        rest = dict(addend=addend, carry=v.sub & addend[:low].all(), above=addend[top:] + 1,
+                    room=v.room, sub=v.sub, prod_sign=v.prod_sign, c_sign=v.c_sign,
+                    is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign, invalid=v.invalid)
+        if cuts.chooses(SUM_CUT):
+            # The partial products' adder tree in two stages (its first level, then the rest).
+            held = {}
+
+            def sum_cut(terms):
+                r = cuts(SUM_CUT, **{f"lane{i}": t for i, (t, _) in enumerate(terms)}, **rest)
+                held.update(vars(r))
+                return [(held[f"lane{i}"], at) for i, (_, at) in enumerate(terms)]
+
+            product = sum_partial_products(v, 2 * p, cut=sum_cut)
+            rest = {key: held[key] for key in rest}
+        else:
+            product = sum_partial_products(v, 2 * p)
+        v = cuts("add", product=product, **rest)
 
         # Two adders from the same operands: the sum or the difference (the carry in under the
         # lowest bit) and, for a difference that comes out negative (no carry out: product <

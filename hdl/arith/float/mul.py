@@ -91,12 +91,16 @@ def _add_above(lo, hi, shift: int):
     return Cat(lo[:shift], lo[shift:] + hi)
 
 
-def sum_partial_products(v, width: int):
+def sum_partial_products(v, width: int, cut=None):
     """The product from the partial products in namespace ``v``, ``width`` bits.
 
     Terms that do not overlap are concatenated into lanes (binary64's nine blocks and two
     rows make six), and the lanes added pairwise in order of weight, a balanced tree; below
     the higher term of a pair the lower one's bits pass through without an adder.
+
+    ``cut``, if given, is called after the tree's first level with its terms (``(value,
+    weight)`` pairs) and returns them as they come out of a pipeline boundary: the tree's
+    carry chains in two stages.
     """
     terms = sorted(((Value.cast(value), int(name.rpartition("_")[2]))
                     for name, value in vars(v).items() if name.startswith("pp")),
@@ -109,10 +113,14 @@ def sum_partial_products(v, width: int):
         else:
             lane[0] = Cat(lane[0], C(0, at - lane[1] - len(lane[0])), value)
     terms = [tuple(lane) for lane in lanes]
-    while len(terms) > 1:
+    level = 0
+    while len(terms) > 1 or cut is not None and level == 0:
         paired = [(_add_above(lo, hi, at_hi - at_lo), at_lo)
                   for (lo, at_lo), (hi, at_hi) in zip(terms[0::2], terms[1::2])]
         terms = paired + terms[len(paired) * 2:]
+        level += 1
+        if level == 1 and cut is not None:
+            terms = cut(terms)
     value, at = terms[0]
     return Cat(C(0, at), value)[:width]
 

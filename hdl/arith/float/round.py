@@ -18,7 +18,7 @@ from amaranth.lib import data, wiring
 
 from .format import FloatFormat
 
-__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "FloatUnit", "UnitPlan", "Cuts", "unpack",
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "ROUND_UP", "FloatUnit", "UnitPlan", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
 
 SUBNORMAL_MODES = ("ieee", "ftz")
@@ -30,6 +30,9 @@ ROUND_BOUNDARIES = ("round.shift", "round.round", "round.select")
 #: A boundary before those, inside the leading-zero count (after the counts of blocks of
 #: :data:`LZ_BLOCK` bits), for wide significands. Only a unit that chooses it passes it.
 ROUND_COUNT = "round.count"
+#: A boundary inside the rounding, after the increment and the exponent's adds and compares
+#: (before the selects), for a unit that chooses it: "round.select"'s logic in two.
+ROUND_UP = "round.up"
 
 
 def as_format(fmt) -> FloatFormat:
@@ -585,16 +588,30 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
     # The incremented significand, the exponent plus the carry and hidden bits it may have,
     # and the overflow compares are all made beside the rounding decision, which selects.
     up = cuts.wire("up", keep + 1)
-    # carry | hidden | fraction
-    mant = cuts.wire("mant", Mux(round_bit & (rest | keep[0]), up, keep))
     top = fmt.exp_max_field
-    exp_field = Mux(mant[p], v.exp_base + 2, Mux(mant[m], v.exp_base + 1, v.exp_base))
-    overflow = Mux(mant[p], v.exp_base >= top - 2,
-                   Mux(mant[m], v.exp_base >= top - 1, v.exp_base >= top))
-    # ``shifted`` has its top bit at 2**emin. Tiny after rounding: below 2**emin, unless in
-    # [2**(emin-1), 2**emin) and rounding up to 2**emin at full precision, which needs the
-    # ones from 2**(emin-1) down to the round bit at that precision (bit G-2 here).
-    tiny = v.nonzero & ~v.shifted[width - 1] & ~v.shifted[guard - 2:width - 1].all()
+    if cuts.chooses(ROUND_UP):
+        # The increment and the exponent's adds and compares registered: the selects after.
+        tiny = v.nonzero & ~v.shifted[width - 1] & ~v.shifted[guard - 2:width - 1].all()
+        r = cuts(ROUND_UP, keep=keep, up=up, round_bit=round_bit, rest=rest, exp_base=v.exp_base,
+                 exp_1=v.exp_base + 1, exp_2=v.exp_base + 2, over_0=v.exp_base >= top,
+                 over_1=v.exp_base >= top - 1, over_2=v.exp_base >= top - 2, tiny=tiny,
+                 sign=v.sign, zero_sign=v.zero_sign, nonzero=v.nonzero, lost=v.lost,
+                 is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero, invalid=v.invalid,
+                 divbyzero=v.divbyzero)
+        mant = cuts.wire("mant", Mux(r.round_bit & (r.rest | r.keep[0]), r.up, r.keep))
+        exp_field = Mux(mant[p], r.exp_2, Mux(mant[m], r.exp_1, r.exp_base))
+        overflow = Mux(mant[p], r.over_2, Mux(mant[m], r.over_1, r.over_0))
+        inexact, tiny, v = r.round_bit | r.rest, r.tiny, r
+    else:
+        # carry | hidden | fraction
+        mant = cuts.wire("mant", Mux(round_bit & (rest | keep[0]), up, keep))
+        exp_field = Mux(mant[p], v.exp_base + 2, Mux(mant[m], v.exp_base + 1, v.exp_base))
+        overflow = Mux(mant[p], v.exp_base >= top - 2,
+                       Mux(mant[m], v.exp_base >= top - 1, v.exp_base >= top))
+        # ``shifted`` has its top bit at 2**emin. Tiny after rounding: below 2**emin, unless in
+        # [2**(emin-1), 2**emin) and rounding up to 2**emin at full precision, which needs the
+        # ones from 2**(emin-1) down to the round bit at that precision (bit G-2 here).
+        tiny = v.nonzero & ~v.shifted[width - 1] & ~v.shifted[guard - 2:width - 1].all()
     v = cuts("round.select", sign=Mux(v.nonzero | v.lost, v.sign, v.zero_sign),
              special_sign=v.sign, exp_field=exp_field[:fmt.exp_bits], frac=mant[:m],
              overflow=overflow, inexact=inexact, tiny=tiny,
