@@ -54,7 +54,7 @@ def test_target_picks_the_fewest_stages(op, target):
     if mhz >= target:
         assert all(predicted_mhz(op, delays[k]) < target for k in fewer), "none fewer reaches it"
     else:
-        assert mhz == max(predicted_mhz(op, d) for k, d in delays.items() if k > 0), "else the fastest plan"
+        assert stages == max(delays), "else the most stages"
     assert FpuParams(op=op, target_mhz=target).stages == stages
     assert unit_timing(op, "binary32", target_mhz=target) == (stages, mhz)
 

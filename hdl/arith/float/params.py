@@ -37,7 +37,7 @@ def check_target(value) -> float | None:
 def unit_timing(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1,
                 target_mhz: float | None = None, stages: int | None = None) -> tuple[int | None, float | None]:
     """``(stages, predicted Fmax in MHz)`` of a unit by the calibrated delay model
-    (:mod:`.timing`): with ``target_mhz``, the fewest stages that reach it (or the fastest
+    (:mod:`.timing`): with ``target_mhz``, the fewest stages that reach it (or the most
     plan); otherwise for ``stages`` (``None``: the default). The prediction is ``None`` for
     an iterative sin, cos or atan2, whose measured clock :data:`~.timing.MEASURED_MHZ` gives."""
     cls = _unit_class(op)
@@ -147,7 +147,7 @@ class FpuParams:
         iterative, one operation per K cycles; 1 for the others.
     target_mhz : float or None
         A clock in MHz (ECP5-85, nextpnr) to pipeline for: ``stages`` becomes the fewest the
-        calibrated delay model (:mod:`.timing`) predicts to reach it, or the fastest plan
+        calibrated delay model (:mod:`.timing`) predicts to reach it, or the most stages
         when none does; the manifest records the target and the prediction. ``None`` (the
         default) keeps ``stages``' own default. Given both, ``stages`` must be the count the
         target picks (the recorded parameters regenerate the same core).
