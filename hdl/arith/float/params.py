@@ -38,7 +38,7 @@ def unit_timing(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1,
                 target_mhz: float | None = None, stages: int | None = None) -> tuple[int | None, float | None]:
     """``(stages, predicted Fmax in MHz)`` of a unit by the calibrated delay model
     (:mod:`.timing`): with ``target_mhz``, the fewest stages that reach it (or the most
-    plan); otherwise for ``stages`` (``None``: the default). The prediction is ``None`` for
+    stages); otherwise for ``stages`` (``None``: the default). The prediction is ``None`` for
     an iterative sin, cos or atan2, whose measured clock :data:`~.timing.MEASURED_MHZ` gives."""
     cls = _unit_class(op)
     delays = cls.stage_delays(fmt, **_unit_args(op, subnormals, None, cycles_per_op))
