@@ -49,12 +49,8 @@ class ImmParams:
     address_width : int or None
         AXI byte-address width; ``None``: the smallest that holds the map.
     target_mhz : float or None
-        A clock in MHz (ECP5-85, nextpnr) to pipeline the engine's units for: the FMA's,
-        divider's, square root's and exponential's stages become the fewest the calibrated
-        delay model predicts to reach it (:func:`kfgen.hdl.engine.machine.timing`; the
-        schedule follows their latencies). The engine's own paths are not pipelined by it, so
-        the prediction is at most :data:`~kfgen.hdl.engine.machine.ENGINE_MHZ`. ``None`` (the
-        default): the units' defaults.
+        A clock in MHz to pipeline the engine's units for, as the UKF's
+        (:class:`kfgen.hdl.ukf.params.UkfParams`); ``None``: the units' defaults.
     name : str
         Top-level module name.
     """
