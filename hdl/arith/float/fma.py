@@ -10,7 +10,7 @@ from amaranth.lib.wiring import In, Out
 from .format import FloatFormat
 from .timing import carry_delay, dsp_delay, lut_delay, product_sum_delay, round_delays, shifter_delay, tree_levels
 from .mul import partial_products, sum_partial_products
-from .round import (ROUND_BOUNDARIES, ROUND_COUNT, ROUND_UP, FloatUnit, leading_zeros, prepare_exponent,
+from .round import (ROUND_BOUNDARIES, ROUND_COUNT, ROUND_HALF, ROUND_UP, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
 
 __all__ = ["FloatFMA"]
@@ -93,6 +93,8 @@ class FloatFMA(FloatUnit):
         12: ("in", EXP_CUT, "mul", "mul.sum", SUM_CUT, "add", "norm", ROUND_COUNT, _R[0], _R[1], _R[2], "out"),
         13: ("in", EXP_CUT, "mul", "mul.sum", SUM_CUT, "add", "norm", ROUND_COUNT, _R[0], _R[1], ROUND_UP, _R[2],
              "out"),
+        14: ("in", EXP_CUT, "mul", "mul.sum", SUM_CUT, "add", "norm", ROUND_COUNT, _R[0], ROUND_HALF, _R[1],
+             ROUND_UP, _R[2], "out"),
     }
     DEFAULT_STAGES = 9
 
@@ -123,7 +125,8 @@ class FloatFMA(FloatUnit):
                 ("norm", carry_delay(2 * p + 1) + lut_delay(2)),
                 (ROUND_COUNT, max(first, shift - count + first)),
                 (_R[0], count - first),
-                (_R[1], normalise), (ROUND_UP, round_up - lut_delay(3)), (_R[2], lut_delay(3)), ("out", out)]
+                (ROUND_HALF, normalise / 2), (_R[1], normalise / 2),
+                (ROUND_UP, round_up - lut_delay(3)), (_R[2], lut_delay(3)), ("out", out)]
 
     def datapath(self, m, cuts):
         fmt, p = self.fmt, self.fmt.precision

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 from amaranth.hdl import C, Cat, Mux, Signal, Value
 from amaranth.lib.wiring import In, Out
 
@@ -125,6 +127,11 @@ def sum_partial_products(v, width: int, cut=None):
     return Cat(C(0, at), value)[:width]
 
 
+#: The boundary after the first level of the partial products' adder tree, in the plan of 9
+#: stages: the "norm" stage's carry chains in two (as the FMA's ``fma.sum``).
+LANES_CUT = "mul.lanes"
+
+
 class FloatMul(FloatUnit):
     """``a * b`` rounded to nearest even.
 
@@ -183,6 +190,7 @@ class FloatMul(FloatUnit):
         6: ("subnorm", "mul", "mul.sum", "norm", _R[1], "out"),
         7: ("subnorm", "mul", "mul.sum", "norm", _R[1], _R[2], "out"),
         8: ("in", "subnorm", "mul", "mul.sum", "norm", _R[1], _R[2], "out"),
+        9: ("in", "subnorm", "mul", "mul.sum", LANES_CUT, "norm", _R[1], _R[2], "out"),
     }
     DEFAULT_STAGES = 7
 
@@ -205,7 +213,8 @@ class FloatMul(FloatUnit):
                                                carry_delay(e + 2))),
                 ("mul", lut_delay(1) + (max(shifter_delay(p), carry_delay(e + 3)) if ieee else 0.0)),
                 ("mul.sum", max(dsp_delay(), prepare_delay(fmt))),
-                ("norm", product_sum_delay(p) + lut_delay(2)),
+                (LANES_CUT, min(product_sum_delay(p), carry_delay(2 * p))),
+                ("norm", product_sum_delay(p) - min(product_sum_delay(p), carry_delay(2 * p)) + lut_delay(2)),
                 *zip(_R + ("out",), round_delays(fmt, p + 1, leading_one=True, prepared=True))]
 
     def datapath(self, m, cuts):
@@ -250,10 +259,25 @@ class FloatMul(FloatUnit):
                  exp_lo=exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
                  is_zero=v.is_zero, invalid=v.invalid)
 
+        if cuts.chooses(LANES_CUT):
+            # The partial products' adder tree in two stages (its first level, then the rest).
+            held = {}
+            rest = dict(exp_hi=v.exp_hi, exp_lo=v.exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
+                        is_zero=v.is_zero, invalid=v.invalid)
+
+            def lanes_cut(terms):
+                r = cuts(LANES_CUT, **{f"lane{i}": t for i, (t, _) in enumerate(terms)}, **rest)
+                held.update(vars(r))
+                return [(held[f"lane{i}"], at) for i, (_, at) in enumerate(terms)]
+
+            total = sum_partial_products(v, 2 * p, cut=lanes_cut)
+            v = SimpleNamespace(**held)
+        else:
+            total = sum_partial_products(v, 2 * p)
         # With a zero below: the significand under the leading one and the sticky bit. Of
         # the exponent, only the denormalising shift is picked here; the top bit picks the
         # rest after the register, beside that shift (less load on the adders' last carry).
-        product = cuts.wire("product", Cat(C(0, 1), sum_partial_products(v, 2 * p)))
+        product = cuts.wire("product", Cat(C(0, 1), total))
         top, low = cuts.wire("top", product[2 * p]), p - 1
         v = cuts("norm", frac=Mux(top, product[low:2 * p], product[low - 1:2 * p - 1]),
                  sticky=product[:low - 1].any() | top & product[low - 1],

@@ -18,7 +18,7 @@ from amaranth.lib import data, wiring
 
 from .format import FloatFormat
 
-__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "ROUND_UP", "FloatUnit", "UnitPlan", "Cuts", "unpack",
+__all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "ROUND_UP", "ROUND_HALF", "FloatUnit", "UnitPlan", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
 
 SUBNORMAL_MODES = ("ieee", "ftz")
@@ -33,6 +33,9 @@ ROUND_COUNT = "round.count"
 #: A boundary inside the rounding, after the increment and the exponent's adds and compares
 #: (before the selects), for a unit that chooses it: "round.select"'s logic in two.
 ROUND_UP = "round.up"
+#: A boundary inside the normalising left shift (after its high bits' part), for a unit that
+#: chooses it: "round.round"'s logic in two.
+ROUND_HALF = "round.half"
 
 
 def as_format(fmt) -> FloatFormat:
@@ -572,11 +575,23 @@ def round_pack(cuts: Cuts, fmt: FloatFormat, *, sign, exp, sig, sticky=0, zero_s
              left=left, room=v.room, below=v.below, nonzero=v.nonzero, is_nan=v.is_nan,
              is_inf=v.is_inf, is_zero=v.is_zero, invalid=v.invalid, divbyzero=v.divbyzero)
 
-    shifted = (v.sig << v.left)[:width]
-    # Biased exponent minus one for a normal result (the rounded significand's hidden bit adds
-    # the one back; a carry out of the significand adds two): ``room - left``, which is zero
-    # for subnormals (there the left shift is the room, back to emin); zero for zero too.
-    exp_base = Mux(v.nonzero & ~v.below, v.room - v.left, 0)
+    if cuts.chooses(ROUND_HALF):
+        # The normalising shift in two stages: by the count's high bits (beside the exponent's
+        # subtract), then by its low bits.
+        k = (len(v.left) + 1) // 2
+        coarse = (v.sig << Cat(C(0, k), v.left[k:]))[:width]
+        v = cuts(ROUND_HALF, sign=v.sign, zero_sign=v.zero_sign, coarse=coarse, fine=v.left[:k],
+                 lost=v.lost, exp_base=Mux(v.nonzero & ~v.below, v.room - v.left, 0),
+                 nonzero=v.nonzero, is_nan=v.is_nan, is_inf=v.is_inf, is_zero=v.is_zero,
+                 invalid=v.invalid, divbyzero=v.divbyzero)
+        shifted, exp_base = (v.coarse << v.fine)[:width], v.exp_base
+    else:
+        shifted = (v.sig << v.left)[:width]
+        # Biased exponent minus one for a normal result (the rounded significand's hidden bit
+        # adds the one back; a carry out of the significand adds two): ``room - left``, which
+        # is zero for subnormals (there the left shift is the room, back to emin); zero for
+        # zero too.
+        exp_base = Mux(v.nonzero & ~v.below, v.room - v.left, 0)
     v = cuts("round.round", sign=v.sign, zero_sign=v.zero_sign, shifted=shifted, lost=v.lost,
              exp_base=exp_base, nonzero=v.nonzero, is_nan=v.is_nan, is_inf=v.is_inf,
              is_zero=v.is_zero, invalid=v.invalid, divbyzero=v.divbyzero)
