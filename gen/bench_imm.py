@@ -32,7 +32,7 @@ from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.sim.toolchain import ToolMissing
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner, timed
+from kfgen.sim.cluster import add_arguments, collect, open_runner, task_seconds, timed
 
 from .bench_ukf import BRAM36_BITS
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
@@ -170,10 +170,8 @@ def main(argv=None) -> int:
                                                   name=f"simulate-{r['top']}")) for r in big]
             collect(jobs, label=lambda r: f"R = {r['R']}, P = {r['pes']}", tool="bench_imm")
         seconds["every job (wall)"] = time.monotonic() - t0
-        for key, what in (("sim", "simulation"), ("xilinx", "Xilinx synthesis"), ("ecp5", "ECP5 place and route")):
-            total = sum(r.get(f"{key}_seconds", 0) for r in rows)
-            if total:
-                seconds[f"{what} (task time)"] = total
+        seconds.update(task_seconds(rows, (("sim", "simulation"), ("xilinx", "Xilinx synthesis"),
+                                                  ("ecp5", "ECP5 place and route"))))
     except ToolMissing as exc:
         print(f"bench_imm: {exc}", file=sys.stderr)
         return 1

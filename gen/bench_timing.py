@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 from kfgen.hdl.arith.float.descriptor import CORE as FPU
-from kfgen.hdl.arith.float.params import FpuParams, unit_timing
+from kfgen.hdl.arith.float.params import FpuParams, check_target, unit_timing
+from kfgen.hdl.describe import ParamError
 from kfgen.hdl.arith.float.timing import CALIBRATION, MEASURED_MHZ
 from kfgen.sim.cluster import add_arguments, collect, open_runner
 
@@ -62,26 +63,24 @@ def _model_ns(op: str, stages: int) -> float:
     return _unit_class(op).stage_delays("binary32", **_unit_args(op, "ieee", None, 1))[stages]
 
 
-def _engine_rows(targets, out: Path) -> list[dict]:
+def _engine_rows(targets, out: Path) -> tuple[list[dict], dict]:
+    """The UKF core at P = 1 for each target: its rows, and the cores to measure, one per
+    distinct choice of the units' stages (``key`` of the rows)."""
     from kfgen.hdl.engine.machine import machine, timing
     from kfgen.hdl.ukf.descriptor import CORE as UKF
     from kfgen.hdl.ukf.params import UkfParams
 
-    rows, seen = [], {}
+    rows, cores = [], {}
     for t in targets:
         params = UkfParams(target_mhz=t, name=f"ukf_p1_t{t:g}")
         tm = timing(params, machine(params))
-        key = tuple(u["stages"] for u in tm["units"].values())
-        if key in seen:
-            rows.append({**seen[key], "target": t, "predicted": tm["predicted_fmax_mhz"], "shared": True})
-            continue
-        work, manifest = write_core(UKF, params, out)
-        row = {"op": "ukf P=1", "target": t, "stages": ", ".join(f"{k} {u['stages']}" for k, u in tm["units"].items()),
-               "predicted": tm["predicted_fmax_mhz"], "work": work, "top": params.name,
-               "cycles": sum(manifest["cycles"][k] for k in ("sig_gen", "predict", "update"))}
-        seen[key] = row
-        rows.append(row)
-    return rows
+        key = ", ".join(f"{k} {u['stages']}" for k, u in tm["units"].items())
+        rows.append({"op": "ukf P=1", "target": t, "stages": key, "predicted": tm["predicted_fmax_mhz"]})
+        if key not in cores:
+            work, manifest = write_core(UKF, params, out)
+            cores[key] = {"work": work, "top": params.name, "target": t,
+                          "cycles": sum(manifest["cycles"][k] for k in ("sig_gen", "predict", "update"))}
+    return rows, cores
 
 
 def main(argv=None) -> int:
@@ -97,8 +96,11 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--out", default="build/bench_timing", help="work directory (default build/bench_timing)")
     add_arguments(ap)
     args = ap.parse_args(argv)
-    if any(not 10 <= t <= 1000 for t in args.targets):
-        print("bench_timing: --targets are clocks in 10..1000 MHz", file=sys.stderr)
+    try:
+        for t in args.targets:
+            check_target(t)
+    except ParamError as exc:
+        print(f"bench_timing: --targets: {exc.message}", file=sys.stderr)
         return 2
     out = Path(args.out).resolve()
     start = time.monotonic()
@@ -121,16 +123,14 @@ def main(argv=None) -> int:
                     # nextpnr aims at the target (the default's at 125, as bench_fpu)
                     jobs.append((measured[key], "ecp5", ecp5_fmax(work, name, t or 125.0, tuple(args.seeds),
                                                                   runner=runner)))
-        engine = [] if args.no_engine or args.calibrate else _engine_rows(targets, out / "engine")
-        jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], r["target"], tuple(args.engine_seeds), runner=runner))
-                 for r in engine if not r.get("shared")]
-        collect(jobs, label=lambda r: f"{r['op']} {r.get('stages')}", tool="bench_timing")
-    for r in rows:
+        engine, cores = ([], {}) if args.no_engine or args.calibrate else _engine_rows(targets, out / "engine")
+        jobs += [(c, "ecp5", ecp5_fmax(c["work"], c["top"], c["target"], tuple(args.engine_seeds), runner=runner))
+                 for c in cores.values()]
+        collect(jobs, label=lambda r: f"{r.get('op', r.get('top'))} {r.get('stages', '')}", tool="bench_timing")
+    for r in rows:  # configurations two targets share were measured once
         r.update({k: v for k, v in measured[(r["op"], r["stages"])].items() if k not in r})
     for r in engine:
-        if r.get("shared"):
-            first = next(x for x in engine if not x.get("shared") and x["stages"] == r["stages"])
-            r.update({k: v for k, v in first.items() if k not in r})
+        r.update({k: v for k, v in cores[r["stages"]].items() if k not in r})
     calibration = fit(list(measured.values()))
     report = _render(rows, engine, calibration, args, time.monotonic() - start)
     print(report, end="")

@@ -42,7 +42,7 @@ from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
 
-from kfgen.sim.cluster import add_arguments, collect, runner_argv as _runner_argv, shared, timed
+from kfgen.sim.cluster import add_arguments, collect, runner_argv as _runner_argv, shared, task_seconds, timed
 
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
@@ -434,10 +434,8 @@ def main(argv=None) -> int:
                                                   name=f"simulate-{r['top']}")) for r in chip]
             collect(jobs, label=lambda r: f"P = {r.get('pes', '')} {r.get('top', '')}", tool="bench_ukf")
         seconds["every job (wall)"] = time.monotonic() - t0
-        for key, what in (("sim", "simulation"), ("xilinx", "Xilinx synthesis"), ("ecp5", "ECP5 place and route")):
-            total = sum(r.get(f"{key}_seconds", 0) for r in rows + chip)
-            if total:
-                seconds[f"{what} (task time)"] = total
+        seconds.update(task_seconds(rows + chip, (("sim", "simulation"), ("xilinx", "Xilinx synthesis"),
+                                                  ("ecp5", "ECP5 place and route"))))
         for r in rows:
             for res in r.get("system", {}).values():
                 if "system_error" in res:

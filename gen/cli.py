@@ -226,15 +226,11 @@ def _convert(text: str, default):
     parameter, with its range) rejects it."""
     if isinstance(default, str):
         return text
-    try:
-        if default is None or isinstance(default, int):  # None: an optional count (or clock)
-            return int(text, 10)
-        return float(text)
-    except ValueError:
-        pass
-    if default is None:  # an optional clock (--target-mhz 137.5); a count says it is not one
+    # None: an optional count, or clock (--target-mhz 137.5), so a whole number first
+    kinds = [int] if isinstance(default, int) else [float] if default is not None else [int, float]
+    for kind in kinds:
         try:
-            return float(text)
+            return int(text, 10) if kind is int else float(text)
         except ValueError:
             pass
     return text

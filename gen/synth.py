@@ -114,9 +114,9 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3), runner
     With a :class:`~kfgen.sim.cluster.Runner`, the synthesis and each seed are tasks and this
     returns the future of the summary; without one, the summary.
     """
-    if runner is None:
-        synth = ecp5_synth(work, top)
-        return ecp5_summary(work, synth, [ecp5_pnr(work, top, freq, s) for s in seeds])
+    if runner is None:  # the same tasks, run here
+        from kfgen.sim.cluster import Runner
+        return ecp5_fmax(work, top, freq, seeds, Runner(serial=True)).result()
     synth = runner.submit(ecp5_synth, work, top, name=f"synth_ecp5-{top}", priority=1)
     runs = [runner.submit(ecp5_pnr, work, top, freq, s, synth, name=f"nextpnr-{top}-s{s}") for s in seeds]
     return runner.submit(ecp5_summary, work, synth, runs, name=f"fmax-{top}")

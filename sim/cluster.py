@@ -27,7 +27,7 @@ import sys
 import time
 import uuid
 
-__all__ = ["Runner", "add_arguments", "runner_argv", "open_runner", "shared", "collect", "timed"]
+__all__ = ["Runner", "add_arguments", "runner_argv", "open_runner", "shared", "collect", "timed", "task_seconds"]
 
 _SHARED: list["Runner"] = []
 
@@ -205,6 +205,13 @@ def collect(jobs, label=lambda row: "", tool: str = "bench", each=None) -> None:
                   file=sys.stderr, flush=True)
         if each is not None:
             each(row)
+
+
+def task_seconds(rows, kinds) -> dict:
+    """``{"<what> (task time)": seconds}``: the jobs' own time summed over ``rows`` for each
+    ``(key, what)`` of ``kinds`` that has any (the ``<key>_seconds`` :func:`collect` wrote)."""
+    totals = {f"{what} (task time)": sum(r.get(f"{key}_seconds", 0) for r in rows) for key, what in kinds}
+    return {k: v for k, v in totals.items() if v}
 
 
 def _ident(future):

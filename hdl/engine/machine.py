@@ -33,17 +33,12 @@ def timing(params, mc: Machine) -> dict:
     """The manifest's ``timing`` of an engine core with a ``target_mhz``: the target, each
     unit's stages and predicted Fmax by the calibrated model, and the core's prediction (the
     slowest unit, at most :data:`ENGINE_MHZ`)."""
-    from ..arith.float.params import unit_timing
-    per_op = {"fma": 1, "div": mc.div_interval, "sqrt": mc.sqrt_interval, "exp": 1}
-    units = {}
-    for op, latency in (("fma", mc.fma_latency), ("div", mc.div_latency), ("sqrt", mc.sqrt_latency),
-                        ("exp", mc.exp_latency)):
-        _, mhz = unit_timing(op, params.fmt, "ieee", per_op[op], stages=latency)
-        units[op] = {"stages": latency, "predicted_fmax_mhz": round(mhz, 1)}
-    predicted = min([ENGINE_MHZ] + [u["predicted_fmax_mhz"] for u in units.values()])
-    return {"target_mhz": params.target_mhz, "predicted_fmax_mhz": predicted,
-            "met": predicted >= params.target_mhz, "units": units, "engine_mhz": ENGINE_MHZ,
-            "model": "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing; the engine's own paths measured)"}
+    from ..arith.float.params import core_timing
+    units = {"fma": ("fma", 1, mc.fma_latency), "div": ("div", mc.div_interval, mc.div_latency),
+             "sqrt": ("sqrt", mc.sqrt_interval, mc.sqrt_latency), "exp": ("exp", 1, mc.exp_latency)}
+    return {**core_timing(params.target_mhz, params.fmt, units, ENGINE_MHZ,
+                          "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing; the engine's own paths measured)"),
+            "engine_mhz": ENGINE_MHZ}
 
 
 def _sqrt_stages(fmt, per_op):

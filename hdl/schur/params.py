@@ -14,7 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..arith.float.format import FloatFormat
-from ..arith.float.params import OMIT_NONE, FpuParams, check_target, cycles_per_op_range, stages_range, unit_timing
+from ..arith.float.params import (OMIT_NONE, FpuParams, check_target, core_timing, cycles_per_op_range, stages_range,
+                                  unit_timing)
 from ..describe import ParamError, check_name
 from .program import SIZE_MAX
 
@@ -106,14 +107,10 @@ class SchurParams:
         """The manifest's ``timing`` (only with a target): the target, each unit's stages and
         predicted Fmax by the calibrated model (:mod:`kfgen.hdl.arith.float.timing`), and the
         core's prediction, its slowest unit's."""
-        units = {}
-        for op, cpo in (("mul", 1), ("add", 1), ("div", self.div_cycles_per_op)):
-            stages = self.latencies[op]
-            units[op] = {"stages": stages, "predicted_fmax_mhz":
-                         round(unit_timing(op, self.format, "ieee", cpo, stages=stages)[1], 1)}
-        predicted = min(u["predicted_fmax_mhz"] for u in units.values())
-        return {"target_mhz": self.target_mhz, "predicted_fmax_mhz": predicted, "met": predicted >= self.target_mhz,
-                "units": units, "model": "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing); the control is not modelled"}
+        units = {op: (op, cpo, self.latencies[op]) for op, cpo in (("mul", 1), ("add", 1),
+                                                                    ("div", self.div_cycles_per_op))}
+        return core_timing(self.target_mhz, self.format, units,
+                           model="ECP5-85, nextpnr (kfgen.hdl.arith.float.timing); the control is not modelled")
 
     @property
     def fmt(self) -> FloatFormat:

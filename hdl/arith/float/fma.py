@@ -9,7 +9,7 @@ from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
 from .timing import carry_delay, dsp_delay, lut_delay, product_sum_delay, round_delays, shifter_delay, tree_levels
-from .mul import ROW_GROUP, partial_products, sum_partial_products
+from .mul import ROW_GROUP, partial_products, sum_in_two, sum_partial_products
 from .round import (ROUND_BOUNDARIES, ROUND_COUNT, ROUND_HALF, ROUND_UP, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
 
@@ -214,17 +214,8 @@ class FloatFMA(FloatUnit):
         rest = dict(addend=addend, carry=v.sub & addend[:low].all(), above=addend[top:] + 1,
                     room=v.room, sub=v.sub, prod_sign=v.prod_sign, c_sign=v.c_sign,
                     is_nan=v.is_nan, is_inf=v.is_inf, inf_sign=v.inf_sign, invalid=v.invalid)
-        if cuts.chooses(SUM_CUT):
-            # The partial products' adder tree in two stages (its first level, then the rest).
-            held = {}
-
-            def sum_cut(terms):
-                r = cuts(SUM_CUT, **{f"lane{i}": t for i, (t, _) in enumerate(terms)}, **rest)
-                held.update(vars(r))
-                return [(held[f"lane{i}"], at) for i, (_, at) in enumerate(terms)]
-
-            product = sum_partial_products(v, 2 * p, cut=sum_cut)
-            rest = {key: held[key] for key in rest}
+        if cuts.chooses(SUM_CUT):  # the partial products' adder tree in two stages
+            product, rest = sum_in_two(cuts, SUM_CUT, v, 2 * p, rest)
         else:
             product = sum_partial_products(v, 2 * p)
         v = cuts("add", product=product, **rest)

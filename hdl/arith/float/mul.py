@@ -132,6 +132,21 @@ def sum_partial_products(v, width: int, cut=None):
 LANES_CUT = "mul.lanes"
 
 
+def sum_in_two(cuts, name: str, v, width: int, rest: dict):
+    """:func:`sum_partial_products` with the boundary ``name`` after the adder tree's first
+    level, registering ``rest`` (the datapath's other live values) beside the tree's terms;
+    returns the product and ``rest`` as they come out of the boundary."""
+    held = {}
+
+    def cut(terms):
+        r = cuts(name, **{f"lane{i}": t for i, (t, _) in enumerate(terms)}, **rest)
+        held.update(vars(r))
+        return [(held[f"lane{i}"], at) for i, (_, at) in enumerate(terms)]
+
+    product = sum_partial_products(v, width, cut=cut)
+    return product, {key: held[key] for key in rest}
+
+
 class FloatMul(FloatUnit):
     """``a * b`` rounded to nearest even.
 
@@ -259,19 +274,11 @@ class FloatMul(FloatUnit):
                  exp_lo=exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
                  is_zero=v.is_zero, invalid=v.invalid)
 
-        if cuts.chooses(LANES_CUT):
-            # The partial products' adder tree in two stages (its first level, then the rest).
-            held = {}
+        if cuts.chooses(LANES_CUT):  # the partial products' adder tree in two stages
             rest = dict(exp_hi=v.exp_hi, exp_lo=v.exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
                         is_zero=v.is_zero, invalid=v.invalid)
-
-            def lanes_cut(terms):
-                r = cuts(LANES_CUT, **{f"lane{i}": t for i, (t, _) in enumerate(terms)}, **rest)
-                held.update(vars(r))
-                return [(held[f"lane{i}"], at) for i, (_, at) in enumerate(terms)]
-
-            total = sum_partial_products(v, 2 * p, cut=lanes_cut)
-            v = SimpleNamespace(**held)
+            total, rest = sum_in_two(cuts, LANES_CUT, v, 2 * p, rest)
+            v = SimpleNamespace(**rest)
         else:
             total = sum_partial_products(v, 2 * p)
         # With a zero below: the significand under the leading one and the sticky bit. Of

@@ -17,7 +17,7 @@ from .format import FLAG_NAMES, FloatFormat
 from .timing import CLOCK_MHZ, MEASURED_MHZ, TARGET_RANGE, predicted_mhz, stages_for_target
 
 __all__ = ["FpuParams", "OPS", "CLOCK_MHZ", "cycles_per_op_range", "stages_range",
-           "ranges_text", "check_target", "unit_timing", "OMIT_NONE"]
+           "ranges_text", "check_target", "unit_timing", "core_timing", "OMIT_NONE"]
 
 #: A parameter that a generated core's header, manifest and command line leave out while it
 #: is ``None`` (so that adding it changed no core generated without it).
@@ -49,6 +49,20 @@ def unit_timing(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1,
     if stages is None:
         stages = cls.plan(fmt, **_unit_args(op, subnormals, None, cycles_per_op)).stages
     return stages, predicted_mhz(op, delays[stages])
+
+def core_timing(target_mhz: float, fmt, units: dict, ceiling: float | None = None,
+                model: str = "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing)") -> dict:
+    """The manifest's ``timing`` of a core built of units: ``units`` maps a name to ``(op,
+    cycles_per_op, stages)``; each unit's stages and predicted Fmax, and the core's prediction,
+    its slowest unit's (at most ``ceiling``, the clock of the core's own paths)."""
+    shown = {}
+    for name, (op, cpo, stages) in units.items():
+        shown[name] = {"stages": stages,
+                       "predicted_fmax_mhz": round(unit_timing(op, fmt, "ieee", cpo, stages=stages)[1], 1)}
+    predicted = min([u["predicted_fmax_mhz"] for u in shown.values()] + ([ceiling] if ceiling else []))
+    return {"target_mhz": target_mhz, "predicted_fmax_mhz": predicted, "met": predicted >= target_mhz,
+            "units": shown, "model": model}
+
 
 #: op -> (operand ports, result is an integer, has cycles_per_op)
 OPS = {

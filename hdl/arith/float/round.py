@@ -98,10 +98,16 @@ class FloatUnit(wiring.Component):
         """The :class:`UnitPlan` of the unit the same arguments would construct, without
         constructing it (so no unit is left unelaborated); raises ``ValueError`` as the
         constructor does."""
-        probe = object.__new__(cls)  # the constructor's checks, and no component
+        probe = cls._probe(*args, **kwargs)
+        return UnitPlan(probe.stages, probe.latency, probe.initiation_interval, probe.PLANS)
+
+    @classmethod
+    def _probe(cls, *args, **kwargs):
+        """The constructor's checks and attributes, and no component."""
+        probe = object.__new__(cls)
         probe._plan_only = True
         cls.__init__(probe, *args, **kwargs)
-        return UnitPlan(probe.stages, probe.latency, probe.initiation_interval, probe.PLANS)
+        return probe
 
     def __init__(self, fmt, subnormals, stages, ports):
         """``ports(fmt)`` gives the signature members for the checked format."""
@@ -130,9 +136,7 @@ class FloatUnit(wiring.Component):
         the unit the same arguments would construct can place (``stages`` is ignored); or
         ``None`` for a unit without a model."""
         from .timing import longest_stage
-        probe = object.__new__(cls)
-        probe._plan_only = True
-        cls.__init__(probe, *args, **kwargs)
+        probe = cls._probe(*args, **kwargs)
         plans = probe.PLANS
         if hasattr(plans, "longest"):
             return {k: plans.longest(k) for k in plans}
