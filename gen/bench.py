@@ -36,7 +36,9 @@ def main(argv=None) -> int:
     with shared(args) as runner:
         for name in args.cores or cores:
             print(f"\n## {name}\n", flush=True)
+            t1 = time.monotonic()
             status |= importlib.import_module(cores[name].bench).main([])
+            print(f"\nbench: {name} in {time.monotonic() - t1:,.0f} s", flush=True)
         print(f"\nbench: {', '.join(args.cores or cores)} in {time.monotonic() - t0:,.0f} s on {runner.where}",
               flush=True)
     return status
