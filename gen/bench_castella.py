@@ -21,7 +21,7 @@ from pathlib import Path
 from kfgen.hdl.castella.descriptor import CORE
 from kfgen.hdl.castella.params import CastellaParams
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner, timed
+from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, timed
 from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, seeds_text, write_core, xilinx_task
 
 __all__ = ["simulated_rate", "tracks_for_full_rate", "table", "main"]
@@ -220,7 +220,7 @@ def main(argv=None) -> int:
     (out / "bench.json").write_text(json.dumps({"rows": rows, "dsp_rows": dsp_rows, "full_rate_tracks": needed,
                                                 "sweep": sweep},
                                                indent=2, sort_keys=True, default=str) + "\n")
-    return 1 if any(r.get(k + "_error") for r in rows + dsp_rows for k in ("xilinx", "ecp5", "simulation")) else 0
+    return 1 if failed(rows + dsp_rows) else 0
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from pathlib import Path
 from kfgen.hdl.arith.float.params import OPS, FpuParams
 from kfgen.hdl.arith.float.descriptor import CORE
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner, runner_argv
+from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, runner_argv
 from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_task
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
@@ -168,7 +168,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench_fpu.md").write_text(report)
     (out / "bench_fpu.json").write_text(json.dumps(rows, indent=2, sort_keys=True, default=str) + "\n")
-    status = 1 if any(r.get("xilinx_error") or r.get("ecp5_error") for r in rows) else 0
+    status = 1 if failed(rows) else 0
     if args.ops is None and args.formats is None and not args.no_pnr:  # the default set: then --target-mhz
         from .bench_timing import main as bench_timing
         print("\n### --target-mhz against nextpnr (python -m kfgen.gen.bench_timing)\n", flush=True)

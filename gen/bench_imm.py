@@ -32,7 +32,7 @@ from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.sim.toolchain import ToolMissing
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner, task_seconds, timed
+from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, task_seconds, timed
 
 from .bench_ukf import BRAM36_BITS
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
@@ -185,8 +185,7 @@ def main(argv=None) -> int:
     (out / "bench_imm.md").write_text(report)
     (out / "bench_imm.json").write_text(json.dumps({"rows": rows, "seconds": seconds}, indent=2, sort_keys=True,
                                                    default=str) + "\n")
-    failed = any(r.get(k) for r in rows for k in ("sim_error", "xilinx_error", "ecp5_error"))
-    return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in big)) else 0
+    return 1 if failed(rows) or not gen_ok or (not args.no_sim and any("measured" not in r for r in big)) else 0
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from kfgen.hdl.arith.float.params import cycles_per_op_range, stages_range
 from kfgen.hdl.schur.descriptor import CORE
 from kfgen.hdl.schur.params import SchurParams
 
-from kfgen.sim.cluster import add_arguments, collect, open_runner
+from kfgen.sim.cluster import add_arguments, collect, failed, open_runner
 
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
@@ -187,7 +187,7 @@ def main(argv=None) -> int:
         figures.mkdir(parents=True, exist_ok=True)
         tradeoff(records, figures / "schur_tradeoff.png")
         print(f"bench_schur: figure {figures / 'schur_tradeoff.png'}", file=sys.stderr)
-    return 1 if any(r.get("xilinx_error") or r.get("ecp5_error") for r in rows) else 0
+    return 1 if failed(rows) else 0
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from kfgen.sim.cluster import add_arguments, collect, shared
+from kfgen.sim.cluster import add_arguments, collect, failed, shared
 
 from .bench_ukf import ON_CHIP_APP
 from .synth import ecp5_fmax, md_table, write_core, xilinx_task
@@ -135,7 +135,7 @@ def main(argv=None) -> int:
             rows = synth_rows(synth_pes, out, a.seeds, a.freq, runner, not a.no_fmax, a.synth_forms.split(","))
             report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
                        f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
-            status |= any(r.get(k) for r in rows for k in ("xilinx_error", "ecp5_error"))
+            status |= failed(rows)
         if not a.no_montecarlo:  # on the same runner
             from kfgen.sim.ukf import montecarlo
             import io

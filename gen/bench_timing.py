@@ -25,7 +25,7 @@ from kfgen.hdl.arith.float.descriptor import CORE as FPU
 from kfgen.hdl.arith.float.params import FpuParams, check_target, unit_timing
 from kfgen.hdl.describe import ParamError
 from kfgen.hdl.arith.float.timing import CALIBRATION, MEASURED_MHZ
-from kfgen.sim.cluster import add_arguments, collect, open_runner
+from kfgen.sim.cluster import add_arguments, collect, failed, open_runner
 
 from .synth import ecp5_fmax, md_table, short_path, write_core
 
@@ -138,7 +138,7 @@ def main(argv=None) -> int:
     (out / "bench_timing.md").write_text(report)
     (out / "bench_timing.json").write_text(json.dumps({"rows": rows, "engine": engine, "calibration": calibration},
                                                       indent=2, sort_keys=True, default=str) + "\n")
-    return 1 if any(r.get("ecp5_error") for r in rows + engine) else 0
+    return 1 if failed(rows + engine) else 0
 
 
 def _render(rows, engine, calibration, args, seconds) -> str:

@@ -42,7 +42,8 @@ from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
 
-from kfgen.sim.cluster import add_arguments, collect, runner_argv as _runner_argv, shared, task_seconds, timed
+from kfgen.sim.cluster import (add_arguments, collect, failed, runner_argv as _runner_argv, shared, task_seconds,
+                               timed)
 
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
@@ -472,9 +473,8 @@ def main(argv=None) -> int:
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)
                                         + "\n")
-    failed = any(r.get(k) for r in rows + chip for k in ("sim_error", "xilinx_error", "ecp5_error")) \
-        or any("error" in res for r in rows for res in r.get("system", {}).values())
-    return 1 if failed or not gen_ok or (not args.no_sim and any("measured" not in r for r in rows)) else 0
+    broken = failed(rows + chip) or any("error" in res for r in rows for res in r.get("system", {}).values())
+    return 1 if broken or not gen_ok or (not args.no_sim and any("measured" not in r for r in rows)) else 0
 
 
 if __name__ == "__main__":

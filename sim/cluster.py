@@ -27,7 +27,7 @@ import sys
 import time
 import uuid
 
-__all__ = ["Runner", "add_arguments", "runner_argv", "open_runner", "shared", "collect", "timed", "task_seconds"]
+__all__ = ["Runner", "add_arguments", "runner_argv", "open_runner", "shared", "collect", "failed", "timed", "task_seconds"]
 
 _SHARED: list["Runner"] = []
 
@@ -177,6 +177,11 @@ def timed(fn, *args, **kwargs) -> dict:
     out = dict(fn(*args, **kwargs))
     out["seconds"] = time.monotonic() - t0
     return out
+
+
+def failed(rows) -> bool:
+    """Whether any row holds a task's failure (a ``<key>_error`` that :func:`collect` put there)."""
+    return any(v for r in rows for k, v in r.items() if k.endswith("_error"))
 
 
 def collect(jobs, label=lambda row: "", tool: str = "bench", each=None) -> None:

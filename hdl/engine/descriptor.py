@@ -37,12 +37,17 @@ def engine_docs() -> dict[str, Doc]:
     }
 
 
-def engine_timing(params) -> dict:
+def units_used(core) -> set[str]:
+    """The engine units that ``core``'s programs use (an optional unit is built only then)."""
+    return {op.unit for s in core.schedules.values() for op in s.program.ops}
+
+
+def engine_timing(params, core) -> dict:
     """``{"timing": ...}`` for the manifest of an engine core with a ``target_mhz``, else ``{}``."""
     if params.target_mhz is None:
         return {}
     from .machine import machine, timing
-    return {"timing": timing(params, machine(params))}
+    return {"timing": timing(params, machine(params), units_used(core))}
 
 
 def engine_waivers(params) -> str:
@@ -75,7 +80,7 @@ def engine_manifest(core) -> dict:
     first = next(iter(scheds.values()))
     layout, mc = first.program.layout, first.machine
     roms = core.program_roms
-    used = {op.unit for s in scheds.values() for op in s.program.ops}
+    used = units_used(core)
     optional = {}  # the latency (and interval) of each optional unit the programs use
     for name, u in isa.UNITS.items():
         if u.optional and u.latency is not None and name in used:

@@ -29,13 +29,16 @@ def _target_stages(params, op: str, per_op: int, default):
     return unit_timing(op, params.fmt, "ieee", per_op, target)[0]
 
 
-def timing(params, mc: Machine) -> dict:
+def timing(params, mc: Machine, used) -> dict:
     """The manifest's ``timing`` of an engine core with a ``target_mhz``: the target, each
     unit's stages and predicted Fmax by the calibrated model, and the core's prediction (the
-    slowest unit, at most :data:`ENGINE_MHZ`)."""
+    slowest unit, at most :data:`ENGINE_MHZ`). The exponential is listed when ``used`` (the
+    units the programs use) holds it: it is built only then."""
     from ..arith.float.params import core_timing
     units = {"fma": ("fma", 1, mc.fma_latency), "div": ("div", mc.div_interval, mc.div_latency),
-             "sqrt": ("sqrt", mc.sqrt_interval, mc.sqrt_latency), "exp": ("exp", 1, mc.exp_latency)}
+             "sqrt": ("sqrt", mc.sqrt_interval, mc.sqrt_latency)}
+    if "exp" in used:
+        units["exp"] = ("exp", 1, mc.exp_latency)
     return {**core_timing(params.target_mhz, params.fmt, units, ENGINE_MHZ,
                           "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing; the engine's own paths measured)"),
             "engine_mhz": ENGINE_MHZ}

@@ -40,7 +40,7 @@ def _extra(params, core) -> dict:
     mc = sched.machine
     return {
         **engine_manifest(core),
-        **engine_timing(params),
+        **engine_timing(params, core),
         "cycles_keys": dict(CYCLES),
         "sizes": {"R": params.R, "n": params.n, "d": params.d},
         "bounds": {"fma": sched.program.fma_count, "fma_per_pe": -(-sched.program.fma_count // mc.pes),

@@ -74,7 +74,7 @@ def _streams(core) -> dict:
 def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
-        **engine_timing(params),
+        **engine_timing(params, core),
         **_streams(core),
         "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
                         for v in steps(params)},

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from kfgen.sim.cluster import Runner, add_arguments, collect, open_runner, runner_argv, timed
+from kfgen.sim.cluster import Runner, add_arguments, collect, failed, open_runner, runner_argv, timed
 
 
 def square(x):
@@ -40,6 +40,7 @@ def _check(rows, seen, here: bool):
     assert rows[1]["sq_seconds"] >= 0 and "seconds" not in rows[1]
     assert rows[2]["pnr_error"] == "RuntimeError: nextpnr failed on x", "the failure's first line, in its row"
     assert sorted(seen) == ["a", "b", "c"]
+    assert failed(rows) and not failed(rows[:2]), "the bench's exit status sees the failed row"
     assert (rows[0]["pid"] == os.getpid()) == here, "in this process only when serial"
 
 

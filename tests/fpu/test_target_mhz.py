@@ -114,8 +114,10 @@ def test_engine_cores_pick_their_units():
             mc = machine(params)
             assert mc.fma_latency == FpuParams(op="fma", target_mhz=t).stages
             assert mc.exp_latency == FpuParams(op="exp", target_mhz=t).stages
-            tm = timing(params, mc)
+            tm = timing(params, mc, {"fma", "exp"})
             assert tm["predicted_fmax_mhz"] <= ENGINE_MHZ and tm["met"] == (tm["predicted_fmax_mhz"] >= t)
+            assert tm["units"]["exp"]["stages"] == mc.exp_latency
+            assert "exp" not in timing(params, mc, {"fma"})["units"], "the exponential only where it is built"
             assert mc.pes == base.pes and mc.banks == base.banks
     schur = SchurParams(target_mhz=150, mul_latency=3)
     assert schur.mul_latency == 3, "a latency given stays"
