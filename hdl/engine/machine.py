@@ -11,13 +11,25 @@ from ..arith.float.sqrt import FloatSqrt
 from ..arith.float.trig import FloatAtan2, FloatCos, FloatSin
 from ..linalg.schedule import Machine, schedule
 
-__all__ = ["machine", "schedules", "timing", "ENGINE_MHZ"]
+__all__ = ["machine", "schedules", "timing", "engine_mhz", "ENGINE_MHZ", "FETCHED_MHZ"]
 
 #: The clock of the engine's own paths beside its units, measured (ECP5-85, nextpnr, UKF core
 #: at P = 1, docs/ukf.md): a program-store DP16KD's word into the fetch register (9.4 ns) and
 #: a bus read's address into the AXI front end (9.9 ns). ``--target-mhz`` pipelines the units
 #: only, so a core's predicted Fmax is at most this.
 ENGINE_MHZ = 101.0
+
+#: The same with the program store's fetch register (a step a cycle longer), which a core's
+#: ``target_mhz`` above :data:`ENGINE_MHZ` adds: the UKF core at P = 1 and ``--target-mhz 125``
+#: measured 122.9 MHz (median of seeds 1 and 2), held by its FMA's partial products, so the
+#: engine's own paths are at least that fast.
+FETCHED_MHZ = 122.9
+
+
+def engine_mhz(mc: Machine) -> float:
+    """The clock of the engine's own paths on ``mc``: :data:`FETCHED_MHZ` with the fetch
+    register, else :data:`ENGINE_MHZ`."""
+    return FETCHED_MHZ if mc.fetch_register else ENGINE_MHZ
 
 
 def _target_stages(params, op: str, per_op: int, default):
@@ -32,16 +44,16 @@ def _target_stages(params, op: str, per_op: int, default):
 def timing(params, mc: Machine, used) -> dict:
     """The manifest's ``timing`` of an engine core with a ``target_mhz``: the target, each
     unit's stages and predicted Fmax by the calibrated model, and the core's prediction (the
-    slowest unit, at most :data:`ENGINE_MHZ`). The exponential is listed when ``used`` (the
+    slowest unit, at most :func:`engine_mhz`). The exponential is listed when ``used`` (the
     units the programs use) holds it: it is built only then."""
     from ..arith.float.params import core_timing
     units = {"fma": ("fma", 1, mc.fma_latency), "div": ("div", mc.div_interval, mc.div_latency),
              "sqrt": ("sqrt", mc.sqrt_interval, mc.sqrt_latency)}
     if "exp" in used:
         units["exp"] = ("exp", 1, mc.exp_latency)
-    return {**core_timing(params.target_mhz, params.fmt, units, ENGINE_MHZ,
+    return {**core_timing(params.target_mhz, params.fmt, units, engine_mhz(mc),
                           "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing; the engine's own paths measured)"),
-            "engine_mhz": ENGINE_MHZ}
+            "engine_mhz": engine_mhz(mc), "fetch_register": bool(mc.fetch_register)}
 
 
 def _sqrt_stages(fmt, per_op):
@@ -78,9 +90,10 @@ def machine(params) -> Machine:
         trig |= {f"{name}_latency": plan.latency, f"{name}_interval": plan.initiation_interval}
     fma = FloatFMA.plan(fmt, stages=_target_stages(params, "fma", 1, None))
     exp = FloatExp.plan(fmt, stages=_target_stages(params, "exp", 1, None))
+    target = getattr(params, "target_mhz", None)
     return Machine(params.pes, fma.latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval,
-                   exp_latency=exp.latency, **trig)
+                   exp_latency=exp.latency, fetch_register=int(target is not None and target > ENGINE_MHZ), **trig)
 
 
 def schedules(steps: dict, mc: Machine) -> dict:

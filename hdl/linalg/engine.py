@@ -32,12 +32,18 @@ from .microcode import Microcode, compile_steps
 from .sequencer import InstructionStream, instruction_layout
 from .units import ProcessingElement, SharedUnit
 
-__all__ = ["program_roms", "Engine", "OVERHEAD"]
+__all__ = ["program_roms", "Engine", "OVERHEAD", "overhead"]
 
 #: Cycles a step takes beyond its schedule: ``start``'s register, the streams' lead to the
 #: step's cycle 0 (:attr:`InstructionStream.LEAD`), the last write's lane register and
-#: ``done``'s register, less the cycle of ``start``.
+#: ``done``'s register, less the cycle of ``start``. A machine with ``fetch_register`` takes
+#: one more (:func:`overhead`).
 OVERHEAD = 1 + InstructionStream.LEAD + 1
+
+
+def overhead(mc) -> int:
+    """:data:`OVERHEAD` on machine ``mc``: a cycle more with its program store's fetch register."""
+    return OVERHEAD + mc.fetch_register
 
 
 def _stream_layout(code: Microcode, img):
@@ -127,9 +133,10 @@ class Engine(wiring.Component):
 
     def cycles(self, step) -> int:
         """Clock edges from the one sampling ``start`` to the one after which ``done`` is
-        high: the schedule's length plus :data:`OVERHEAD`."""
+        high: the schedule's length plus :func:`overhead` (:data:`OVERHEAD`, a cycle more with
+        the fetch register)."""
         k = self._names.index(step) if isinstance(step, str) else step
-        return self._code.cycles[k] + OVERHEAD
+        return self._code.cycles[k] + overhead(self._mc)
 
     def elaborate(self, platform):
         m = Module()
@@ -143,7 +150,7 @@ class Engine(wiring.Component):
         m.d.sync += halt.eq(self.halt)
         for name, img in code.streams.items():
             layout = _stream_layout(code, img)
-            stream = InstructionStream(img, layout)
+            stream = InstructionStream(img, layout, mc.fetch_register)
             m.submodules[f"{name}_stream"] = ResetInserter(halt)(stream)
             if img.unit == "fma":
                 unit = ProcessingElement(fmt, g, layout, stages=mc.fma_latency)
@@ -180,9 +187,10 @@ class Engine(wiring.Component):
         go = self.start & ~self.busy
         go_r = Signal()
         step = Signal.like(self.step)
-        count = Signal(range(max(code.cycles) + OVERHEAD - 1))
+        extra = overhead(mc)
+        count = Signal(range(max(code.cycles) + extra - 1))
         pad = (1 << len(step)) - len(code.cycles)  # every step index covered
-        last = Array(C(c + OVERHEAD - 2, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
+        last = Array(C(c + extra - 2, count.shape()) for c in code.cycles + code.cycles[-1:] * pad)
         m.d.sync += go_r.eq(go & ~self.halt)
         for stream, _ in units:
             m.d.comb += [stream.start.eq(go_r), stream.step.eq(step)]

@@ -82,6 +82,7 @@ class Machine:
     atan2_latency: int = 1
     atan2_interval: int = 1
     unit_register: int = UNIT_REGISTER  # added to every unit's latency but the FMA's
+    fetch_register: int = 0  # 1: the program store's word registered behind its ROM (a step's lead + 1)
 
     def __post_init__(self):
         if self.pes is not None and (isinstance(self.pes, bool) or not isinstance(self.pes, int)
@@ -92,6 +93,8 @@ class Machine:
             v, lo = getattr(self, k), 0 if k in ("read_latency", "unit_register") else 1
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise ValueError(f"{k} must be an integer of at least {lo}, not {v!r}")
+        if self.fetch_register not in (0, 1) or isinstance(self.fetch_register, bool):
+            raise ValueError(f"fetch_register must be 0 or 1, not {self.fetch_register!r}")
         if self.banks is None and self.pes is not None:
             object.__setattr__(self, "banks", 2 * self.pes)
 
@@ -107,7 +110,8 @@ class Machine:
         """Unlimited PEs, banks and ports, and a divider and square root per operation."""
         return Machine(None, self.fma_latency, self.div_latency, self.sqrt_latency,
                        None, self.ports, self.read_latency, exp_latency=self.exp_latency,
-                       unit_register=self.unit_register, **{k: getattr(self, k) for k in TRIG_FIELDS})
+                       unit_register=self.unit_register, fetch_register=self.fetch_register,
+                       **{k: getattr(self, k) for k in TRIG_FIELDS})
 
 
 @dataclass(frozen=True)

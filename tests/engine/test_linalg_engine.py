@@ -24,11 +24,11 @@ def ukf_programs(sizes, w0=0.0, fmt="binary32"):
                                format=fmt))
 
 
-def machine(pes, fmt):
+def machine(pes, fmt, fetch_register=0):
     units = [cls(fmt) for cls in (FloatFMA, FloatDiv, FloatSqrt)]
     for u in units:
         u._MustUse__silence = True  # only the latency is read
-    return Machine(pes, *(u.latency for u in units))
+    return Machine(pes, *(u.latency for u in units), fetch_register=fetch_register)
 
 
 def f(pt, n):
@@ -106,17 +106,19 @@ def simulate(dut, tb):
     sim.run()
 
 
-@pytest.mark.parametrize("pes,fmt", [(1, "binary32"), (2, "binary32"),
-                                     pytest.param(1, "binary16", marks=pytest.mark.full)])
-def test_engine_ukf_iteration(pes, fmt):
+@pytest.mark.parametrize("pes,fmt,fetch", [(1, "binary32", 0), (2, "binary32", 1),
+                                           pytest.param(2, "binary32", 0, marks=pytest.mark.full),
+                                           pytest.param(1, "binary16", 0, marks=pytest.mark.full)])
+def test_engine_ukf_iteration(pes, fmt, fetch):
     """sig_gen, software f, predict, software h, update, then a P that is not positive
-    definite: the hardware's memory equals the golden model's word for word after each."""
+    definite: the hardware's memory equals the golden model's word for word after each
+    (``fetch``: the program store's fetch register)."""
     ukf = ukf_programs((2, 1, 1, 1), 0.25, fmt)
-    mc = machine(pes, fmt)
+    mc = machine(pes, fmt, fetch)
     scheds = {k: schedule(p, mc) for k, p in ukf.steps.items()}
     dut = Engine(scheds)
     for k, s in scheds.items():
-        assert dut.cycles(k) == s.cycles + OVERHEAD
+        assert dut.cycles(k) == s.cycles + OVERHEAD + fetch
     n = ukf.params.n
 
     async def tb(ctx):
@@ -244,3 +246,47 @@ def test_manifest_program_store_is_what_is_built(core):
     built = _rom_bits(Fragment.get(dut, None))
     assert store["bits"] == built > 0
     assert store["instructions"] == sum(r["words"] for r in store["roms"].values())
+
+
+@pytest.mark.parametrize("piece", [512, 8])
+def test_fetch_register_delays_every_issue_by_one_cycle(monkeypatch, piece):
+    """Each stream of a small UKF, every step: with the fetch register, the instructions
+    leave the stream in the same order and spacing, each exactly a cycle later (the ROM in
+    one piece, and in pieces of 8 words)."""
+    from kfgen.hdl.linalg.engine import _stream_layout
+    from kfgen.hdl.linalg.microcode import compile_steps
+    from kfgen.hdl.linalg.sequencer import InstructionStream
+
+    monkeypatch.setattr(InstructionStream, "ROM_PIECE", piece)
+
+    ukf = ukf_programs((2, 1, 1, 1), 0.25)
+    code = compile_steps([schedule(p, machine(2, "binary32")) for p in ukf.steps.values()])
+
+    def fires(img, fetch):
+        dut = InstructionStream(img, _stream_layout(code, img), fetch)
+        seen = []
+
+        async def tb(ctx):
+            for k in range(len(img.bases)):
+                ctx.set(dut.step, k)
+                ctx.set(dut.start, 1)
+                await ctx.tick()
+                ctx.set(dut.start, 0)
+                n = img.ends[k] - img.bases[k]
+                for cycle in range(1, 1 << 16):
+                    if len([s for s in seen if s[0] == k]) == n:
+                        break
+                    if ctx.get(dut.fire):
+                        seen.append((k, cycle, ctx.get(dut.ins.as_value())))
+                    await ctx.tick()
+                await ctx.tick().repeat(3)
+                assert not ctx.get(dut.fire), "nothing after the step's last instruction"
+
+        simulate(dut, tb)
+        return seen, dut.lead
+
+    for name, img in code.streams.items():
+        (plain, lead0), (fetched, lead1) = fires(img, False), fires(img, True)
+        assert lead1 == lead0 + 1 == InstructionStream.LEAD + 1
+        assert len(plain) == len(img.words), name
+        assert fetched == [(k, c + 1, w) for k, c, w in plain], name
