@@ -66,18 +66,18 @@ def _model_ns(op: str, stages: int) -> float:
 def _engine_rows(targets, out: Path) -> tuple[list[dict], dict]:
     """The UKF core at P = 1 for each target: its rows, and the cores to measure, one per
     distinct choice of the units' stages (``key`` of the rows)."""
-    from kfgen.hdl.engine.machine import machine, timing
     from kfgen.hdl.ukf.descriptor import CORE as UKF
     from kfgen.hdl.ukf.params import UkfParams
 
     rows, cores = [], {}
     for t in targets:
         params = UkfParams(target_mhz=t, name=f"ukf_p1_t{t:g}")
-        tm = timing(params, machine(params))
-        key = ", ".join(f"{k} {u['stages']}" for k, u in tm["units"].items())
+        work, manifest = write_core(UKF, params, out)
+        tm = manifest["timing"]
+        key = ", ".join([f"{k} {u['stages']}" for k, u in tm["units"].items()]
+                        + (["fetch register"] if tm["fetch_register"] else []))
         rows.append({"op": "ukf P=1", "target": t, "stages": key, "predicted": tm["predicted_fmax_mhz"]})
         if key not in cores:
-            work, manifest = write_core(UKF, params, out)
             cores[key] = {"work": work, "top": params.name, "target": t,
                           "cycles": sum(manifest["cycles"][k] for k in ("sig_gen", "predict", "update"))}
     return rows, cores

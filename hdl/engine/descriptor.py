@@ -29,8 +29,9 @@ def engine_docs() -> dict[str, Doc]:
                              "the map)", "bits", f"an integer in 1..{ADDRESS_WIDTH_MAX}, at least what the map needs"),
         "target_mhz": Doc("pipeline the FMA, divider, square root and exponential for this clock on an ECP5-85 "
                           "(nextpnr): each gets the fewest stages the calibrated delay model predicts to reach "
-                          "it, the schedule follows, and the manifest's timing records the prediction (the "
-                          "engine's own paths are not pipelined by it); default: the units' own stages", "MHz",
+                          "it, the schedule follows, and the manifest's timing records the prediction; above 101 "
+                          "MHz also the program store's fetch register (a cycle more a step); default: the "
+                          "units' own stages", "MHz",
                           "a number in 10..1000"),
         "name": Doc("top-level module and file name; every module in the Verilog is prefixed by it", "",
                     "a Verilog identifier, not a Verilog/SystemVerilog keyword nor a port name"),

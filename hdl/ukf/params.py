@@ -99,9 +99,11 @@ class UkfParams:
         A clock in MHz (ECP5-85, nextpnr) to pipeline the engine's units for: the FMA's,
         divider's, square root's and exponential's stages become the fewest the calibrated
         delay model predicts to reach it (:func:`kfgen.hdl.engine.machine.timing`; the
-        schedule follows their latencies). The engine's own paths are not pipelined by it, so
-        the prediction is at most :data:`~kfgen.hdl.engine.machine.ENGINE_MHZ`. ``None`` (the
-        default): the units' defaults.
+        schedule follows their latencies). Above
+        :data:`~kfgen.hdl.engine.machine.ENGINE_MHZ` it also adds the program store's fetch
+        register (a cycle more a step), and the prediction is at most
+        :func:`~kfgen.hdl.engine.machine.engine_mhz`. ``None`` (the default): the units'
+        defaults.
     name : str
         Top-level module name.
 

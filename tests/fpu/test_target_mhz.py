@@ -102,7 +102,7 @@ def test_bad_targets(tmp_path, argv, says):
 
 
 def test_engine_cores_pick_their_units():
-    from kfgen.hdl.engine.machine import ENGINE_MHZ, machine, timing
+    from kfgen.hdl.engine.machine import ENGINE_MHZ, engine_mhz, machine, timing
     from kfgen.hdl.imm.params import ImmParams
     from kfgen.hdl.schur.params import SchurParams
     from kfgen.hdl.ukf.params import UkfParams
@@ -115,7 +115,8 @@ def test_engine_cores_pick_their_units():
             assert mc.fma_latency == FpuParams(op="fma", target_mhz=t).stages
             assert mc.exp_latency == FpuParams(op="exp", target_mhz=t).stages
             tm = timing(params, mc, {"fma", "exp"})
-            assert tm["predicted_fmax_mhz"] <= ENGINE_MHZ and tm["met"] == (tm["predicted_fmax_mhz"] >= t)
+            assert mc.fetch_register == (t > ENGINE_MHZ) and tm["fetch_register"] == bool(mc.fetch_register)
+            assert tm["predicted_fmax_mhz"] <= engine_mhz(mc) and tm["met"] == (tm["predicted_fmax_mhz"] >= t)
             assert tm["units"]["exp"]["stages"] == mc.exp_latency
             assert "exp" not in timing(params, mc, {"fma"})["units"], "the exponential only where it is built"
             assert mc.pes == base.pes and mc.banks == base.banks
@@ -129,3 +130,17 @@ def test_trig_units_have_no_model():
     for op in MEASURED_MHZ:
         assert _delays(op) is None
         assert unit_timing(op, "binary32") == (None, None)
+
+
+def test_bench_timing_engine_rows(tmp_path):
+    """bench_timing's UKF rows: the manifest's timing, one core to measure per distinct choice
+    (above the engine's own clock the fetch register makes a choice of its own)."""
+    from kfgen.gen.bench_timing import _engine_rows
+    from kfgen.hdl.engine.machine import ENGINE_MHZ, FETCHED_MHZ
+
+    rows, cores = _engine_rows([100, 125], tmp_path)
+    slow, fast = rows
+    assert "fetch register" not in slow["stages"] and "fetch register" in fast["stages"]
+    assert slow["predicted"] <= ENGINE_MHZ < fast["predicted"] <= FETCHED_MHZ
+    assert set(cores) == {slow["stages"], fast["stages"]}
+    assert cores[fast["stages"]]["cycles"] > cores[slow["stages"]]["cycles"], "deeper units, a longer fetch"
