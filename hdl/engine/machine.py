@@ -21,9 +21,10 @@ ENGINE_MHZ = 101.0
 
 #: The same with the program store's fetch register (a step a cycle longer), which a core's
 #: ``target_mhz`` above :data:`ENGINE_MHZ` adds: the UKF core at P = 1 and ``--target-mhz 125``
-#: measured 122.9 MHz (median of seeds 1 and 2), held by its FMA's partial products, so the
-#: engine's own paths are at least that fast.
-FETCHED_MHZ = 122.9
+#: measured 119.8 MHz (``python -m kfgen.gen.bench_timing``, median of seeds 1-3: 119.8, 114.0,
+#: 122.7), its critical path a program-store DP16KD into its own register (5.8 ns of
+#: clock-to-output and 2.5 ns of routing, 8.3 ns).
+FETCHED_MHZ = 119.8
 
 
 def engine_mhz(mc: Machine) -> float:

@@ -92,6 +92,8 @@ CONFIGURATIONS = [
     pytest.param(["--models", "2", "--states", "3", "--measurements", "3", "--format", "binary64"],
                  id="d3_binary64", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary16"], id="small_binary16", marks=pytest.mark.full),
+    # --target-mhz above the engine's clock: deeper units (the exponential too) and the fetch register
+    pytest.param([*SMALL, "--target-mhz", "125"], id="small_t125", marks=pytest.mark.full),
 ]
 
 
