@@ -65,7 +65,7 @@ class Engine(wiring.Component):
 
     A step starts when ``start`` is high while idle (``step`` names it); ``busy`` rises the
     next cycle and ``done`` is high for one cycle :meth:`cycles` clock edges after the one
-    that sampled ``start`` (the schedule's length plus :data:`OVERHEAD`), when ``busy`` has
+    that sampled ``start`` (the schedule's length plus :func:`overhead`), when ``busy`` has
     fallen. ``start`` while busy is ignored.
 
     Faults: a checked pivot that is NaN, negative or zero sets ``err_pivot``; a NaN or
