@@ -275,8 +275,7 @@ class FloatMul(FloatUnit):
                  is_zero=v.is_zero, invalid=v.invalid)
 
         if cuts.chooses(LANES_CUT):  # the partial products' adder tree in two stages
-            rest = dict(exp_hi=v.exp_hi, exp_lo=v.exp_lo, sign=v.sign, is_nan=v.is_nan, is_inf=v.is_inf,
-                        is_zero=v.is_zero, invalid=v.invalid)
+            rest = {k: x for k, x in vars(v).items() if not k.startswith("pp")}  # all but the terms
             total, rest = sum_in_two(cuts, LANES_CUT, v, 2 * p, rest)
             v = SimpleNamespace(**rest)
         else:

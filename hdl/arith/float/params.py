@@ -50,6 +50,7 @@ def unit_timing(op: str, fmt, subnormals: str = "ieee", cycles_per_op: int = 1,
         stages = cls.plan(fmt, **_unit_args(op, subnormals, None, cycles_per_op)).stages
     return stages, predicted_mhz(op, delays[stages])
 
+
 def core_timing(target_mhz: float, fmt, units: dict, ceiling: float | None = None,
                 model: str = "ECP5-85, nextpnr (kfgen.hdl.arith.float.timing)") -> dict:
     """The manifest's ``timing`` of a core built of units: ``units`` maps a name to ``(op,
