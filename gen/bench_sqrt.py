@@ -8,6 +8,9 @@
    seeds) of the on-chip nanosatellite core in both forms at P = 1 and 2.
 3. The nanosatellite with the printed P0 = I over 100 seeds x 1000 iterations in binary32,
    binary16 and bfloat16, both forms (:mod:`kfgen.sim.ukf.montecarlo`).
+
+``--target-mhz F`` builds the cores of parts 1 and 2 for that clock (``kfgen ukf --target-mhz
+F``); the Monte Carlo runs the golden model, which does not depend on it.
 """
 
 from __future__ import annotations
@@ -20,17 +23,17 @@ from pathlib import Path
 from kfgen.sim.cluster import add_arguments, collect, failed, shared
 
 from .bench_ukf import ON_CHIP_APP
-from .synth import ecp5_fmax, md_table, write_core, xilinx_task
+from .synth import add_target_arguments, ecp5_fmax, md_table, resolve_freq, target_tag, write_core, xilinx_task
 
 __all__ = ["cycle_rows", "cycles_table", "main"]
 
 FORMS = ("ldl", "sqrt")
 
 
-def cycle_rows(pes=(1, 2, 10)) -> list[dict]:
+def cycle_rows(pes=(1, 2, 10), target_mhz: float | None = None) -> list[dict]:
     """Per P and form: the three-step core's step cycles and the on-chip core's iteration, as
-    their manifests give them (``cycles``)."""
-    from kfgen.hdl.linalg.engine import OVERHEAD
+    their manifests give them (``cycles``), for the cores' ``target_mhz``."""
+    from kfgen.hdl.linalg.engine import overhead
     from kfgen.hdl.linalg.schedule import chain_bound
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.hdl.ukf.steps import machine, programs, schedules
@@ -40,14 +43,14 @@ def cycle_rows(pes=(1, 2, 10)) -> list[dict]:
     rows = []
     for p in pes:
         for form in FORMS:
-            three = UkfParams(**sizes, pes=p, form=form)
-            chip = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True)
+            three = UkfParams(**sizes, pes=p, form=form, target_mhz=target_mhz)
+            chip = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True, target_mhz=target_mhz)
             s3, sc = schedules(three), schedules(chip)
             progs, mc = programs(chip), machine(chip)
-            it = progs.iteration
+            it, extra = progs.iteration, overhead(mc)
             rows.append({"pes": p, "form": form,  # the manifests' cycles: the schedules' and the engine's overhead
-                         "steps": {k: s.cycles + OVERHEAD for k, s in s3.items()},
-                         "iteration": sc["iteration"].cycles + OVERHEAD, "noise": sc["noise"].cycles + OVERHEAD,
+                         "steps": {k: s.cycles + extra for k, s in s3.items()},
+                         "iteration": sc["iteration"].cycles + extra, "noise": sc["noise"].cycles + extra,
                          "fmas": it.fma_count, "chain": chain_bound(it, mc)})
     return rows
 
@@ -70,7 +73,8 @@ def cycles_table(rows: list[dict]) -> str:
     return md_table(head, out)
 
 
-def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, forms=FORMS) -> list[dict]:
+def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, forms=FORMS,
+               target_mhz: float | None = None) -> list[dict]:
     from kfgen.hdl.ukf.descriptor import CORE
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.sim.ukf.app import load_app
@@ -79,8 +83,8 @@ def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, fo
     rows = []
     for p in pes:
         for form in forms:
-            params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True,
-                               name=f"ukf_oc_{form}_p{p}")
+            params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True, target_mhz=target_mhz,
+                               name=f"ukf_oc_{form}_p{p}{target_tag(target_mhz)}")
             work, manifest = write_core(CORE, params, out)
             rows.append({"pes": p, "form": form, "top": params.name, "work": work,
                          "iteration": manifest["cycles"]["iteration"]})
@@ -110,7 +114,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_sqrt", description=__doc__.split("\n\n")[0])
     ap.add_argument("--synth-pes", default="1,2", help="P of the synthesised cores (default 1,2)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="nextpnr seeds (default 1 2 3)")
-    ap.add_argument("--freq", type=float, default=100.0, help="nextpnr target, MHz (default 100)")
+    add_target_arguments(ap, 100.0)
     ap.add_argument("--synth-forms", default="ldl,sqrt",
                     help="forms synthesised (default ldl,sqrt; the ldl core is part 5's of bench_ukf, unchanged)")
     ap.add_argument("--no-synth", action="store_true", help="skip part 2 (synthesis, place and route)")
@@ -120,6 +124,7 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--out", default="build/bench_sqrt", help="work directory (default build/bench_sqrt)")
     add_arguments(ap)
     a = ap.parse_args(argv)
+    resolve_freq(a)
     try:
         synth_pes = sorted({int(x) for x in a.synth_pes.split(",")})
     except ValueError:
@@ -128,11 +133,14 @@ def main(argv=None) -> int:
     out = Path(a.out).resolve()
     t0 = time.monotonic()
     report = ("The square-root form (kfgen ukf --form sqrt) beside the ldl form: cycles per iteration, "
-              "nanosatellite sizes (n = 7, m = 6, nw = 7, nv = 6):\n\n" + cycles_table(cycle_rows()) + "\n")
+              "nanosatellite sizes (n = 7, m = 6, nw = 7, nv = 6)"
+              + (f", --target-mhz {a.target_mhz:g}" if a.target_mhz else "") + ":\n\n"
+              + cycles_table(cycle_rows(target_mhz=a.target_mhz)) + "\n")
     status = 0
     with shared(a) as runner:
         if not a.no_synth:
-            rows = synth_rows(synth_pes, out, a.seeds, a.freq, runner, not a.no_fmax, a.synth_forms.split(","))
+            rows = synth_rows(synth_pes, out, a.seeds, a.freq, runner, not a.no_fmax, a.synth_forms.split(","),
+                              a.target_mhz)
             report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
                        f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
             status |= failed(rows)

