@@ -74,23 +74,30 @@ def cycles_table(rows: list[dict]) -> str:
 
 
 def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, forms=FORMS,
-               target_mhz: float | None = None) -> list[dict]:
+               target_mhz: float | None = None, done: dict | None = None) -> list[dict]:
+    """Part 2's rows: each P's on-chip core in each form, synthesised and placed; the ldl rows
+    of ``done`` (P -> a row of ``bench_ukf``'s part 5, the same core already synthesised and
+    placed with the same seeds and target) as they are."""
     from kfgen.hdl.ukf.descriptor import CORE
     from kfgen.hdl.ukf.params import UkfParams
     from kfgen.sim.ukf.app import load_app
 
     sizes = load_app(ON_CHIP_APP).core_parameters()
-    rows = []
+    rows, new = [], []
     for p in pes:
         for form in forms:
+            if form == "ldl" and p in (done or {}):
+                rows.append({**done[p], "form": form, "reused": True})
+                continue
             params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True, target_mhz=target_mhz,
                                name=f"ukf_oc_{form}_p{p}{target_tag(target_mhz)}")
             work, manifest = write_core(CORE, params, out)
-            rows.append({"pes": p, "form": form, "top": params.name, "work": work,
-                         "iteration": manifest["cycles"]["iteration"]})
-    jobs = [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in rows[::-1]]
+            new.append({"pes": p, "form": form, "top": params.name, "work": work,
+                        "iteration": manifest["cycles"]["iteration"]})
+            rows.append(new[-1])
+    jobs = [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in new[::-1]]
     if fmax:
-        jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], freq, tuple(seeds), runner=runner)) for r in rows[::-1]]
+        jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], freq, tuple(seeds), runner=runner)) for r in new[::-1]]
     collect(jobs, label=lambda r: f"P = {r['pes']} {r['form']}", tool="bench_sqrt")
     return rows
 
@@ -110,13 +117,16 @@ def synth_table(rows: list[dict]) -> str:
     return md_table(head, out)
 
 
-def main(argv=None) -> int:
+def main(argv=None, ldl: dict | None = None) -> int:
+    """The command; ``ldl``: :func:`synth_rows`' ``done`` (``bench_ukf`` passes its part 5's
+    nanosatellite rows, so that the full bench does not synthesise and place them twice)."""
     ap = argparse.ArgumentParser(prog="python -m kfgen.gen.bench_sqrt", description=__doc__.split("\n\n")[0])
     ap.add_argument("--synth-pes", default="1,2", help="P of the synthesised cores (default 1,2)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="nextpnr seeds (default 1 2 3)")
     add_target_arguments(ap, 100.0)
     ap.add_argument("--synth-forms", default="ldl,sqrt",
-                    help="forms synthesised (default ldl,sqrt; the ldl core is part 5's of bench_ukf, unchanged)")
+                    help="forms synthesised (default ldl,sqrt; the ldl core is part 5's of bench_ukf, whose figures "
+                         "python -m kfgen.gen.bench ukf takes instead of synthesising it again)")
     ap.add_argument("--no-synth", action="store_true", help="skip part 2 (synthesis, place and route)")
     ap.add_argument("--no-fmax", action="store_true", help="skip place and route")
     ap.add_argument("--no-montecarlo", action="store_true", help="skip part 3 (the 100-seed runs)")
@@ -140,9 +150,12 @@ def main(argv=None) -> int:
     with shared(a) as runner:
         if not a.no_synth:
             rows = synth_rows(synth_pes, out, a.seeds, a.freq, runner, not a.no_fmax, a.synth_forms.split(","),
-                              a.target_mhz)
+                              a.target_mhz, ldl)
+            reused = [str(r["pes"]) for r in rows if r.get("reused")]
             report += ("\nThe on-chip nanosatellite core in both forms (Yosys synth_xilinx; nextpnr-ecp5, median of "
-                       f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n")
+                       f"seeds {' '.join(map(str, a.seeds))}):\n\n" + synth_table(rows) + "\n"
+                       + (f"\n* The ldl rows at P = {', '.join(reused)} are part 5's cores (the same core, synthesised "
+                          "and placed there once).\n" if reused else ""))
             status |= failed(rows)
         if not a.no_montecarlo:  # on the same runner
             from kfgen.sim.ukf import montecarlo

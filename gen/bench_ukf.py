@@ -355,6 +355,13 @@ def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP, target_mhz: 
     return rows
 
 
+def part5_ldl(chip: list[dict], no_fmax: bool) -> dict:
+    """P -> part 5's nanosatellite row that has all that part 6 (``bench_sqrt``) measures of its
+    ldl core, the same core: the full bench does not synthesise and place it again."""
+    return {r["pes"]: r for r in chip if r.get("app", ON_CHIP_APP) == ON_CHIP_APP
+            and ("lut" in r or r.get("xilinx_error")) and (no_fmax or "fmax_mhz" in r or r.get("ecp5_error"))}
+
+
 def _simulate_on_chip(work: Path, top: str, cache: Path) -> dict:
     """One iteration of the on-chip testbench, which asserts the manifest's cycles."""
     from kfgen.sim.ukf.run import build_ukf_core, run_ukf
@@ -478,9 +485,10 @@ def main(argv=None) -> int:
         from .bench_sqrt import main as bench_sqrt
         print("\n### Part 6: the square-root form\n", flush=True)
         gen_ok &= bench_sqrt([*_runner_argv(args), "-o", str(out / "sqrt"), "--freq", f"{args.freq:g}",
+                              "--seeds", *map(str, args.seeds),
                               *(["--target-mhz", f"{args.target_mhz:g}"] if args.target_mhz else []),
                               *(["--no-synth"] if args.no_synth else []),
-                              *(["--no-fmax"] if args.no_fmax else [])]) == 0
+                              *(["--no-fmax"] if args.no_fmax else [])], ldl=part5_ldl(chip, args.no_fmax)) == 0
     (out / "bench_ukf.json").write_text(json.dumps({"rows": rows, "on_chip": chip, "bounds": bound, "engine": engine,
                                                     "seconds": seconds}, indent=2, sort_keys=True, default=str)
                                         + "\n")

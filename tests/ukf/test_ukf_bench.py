@@ -158,3 +158,21 @@ def test_target_mhz_builds_the_cores_for_the_clock(tmp_path):
     assert [r["top"] for r in rows] == ["ukf_p1_t125", "ukf_p2_t125"]
     ldl = [r["steps"] for r in cycle_rows((1, 2), target_mhz=125.0) if r["form"] == "ldl"]
     assert ldl == [r["manifest_cycles"] for r in rows]
+
+
+def test_part6_takes_part5s_ldl_cores(tmp_path):
+    """The full bench synthesises and places the on-chip nanosatellite core once: part 6's ldl
+    rows are part 5's where part 5 measured all that part 6 shows (not the tracker's, not a
+    row without its Fmax), and part 6 then generates nothing for them."""
+    from kfgen.gen.bench_sqrt import synth_rows
+    from kfgen.sim.cluster import Runner
+
+    chip = [{"pes": 1, "app": bench_ukf.ON_CHIP_APP, "iteration": 4650, "lut": 6000, "lut_memory": 10,
+             "fmax_mhz": 99.0},
+            {"pes": 2, "app": bench_ukf.ON_CHIP_APP, "iteration": 2500, "lut": 9000, "lut_memory": 10},
+            {"pes": 1, "app": bench_ukf.TRACKER_APP, "iteration": 873, "lut": 3000, "fmax_mhz": 90.0}]
+    assert list(bench_ukf.part5_ldl(chip, no_fmax=False)) == [1]
+    assert list(bench_ukf.part5_ldl(chip, no_fmax=True)) == [1, 2]
+    done = bench_ukf.part5_ldl(chip, no_fmax=False)
+    rows = synth_rows([1], tmp_path, [1], 100.0, Runner(serial=True), forms=("ldl",), done=done)
+    assert rows == [{**chip[0], "form": "ldl", "reused": True}] and not any(tmp_path.iterdir())
