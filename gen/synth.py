@@ -161,15 +161,13 @@ def flow_note(freq: float, seeds) -> str:
 
 
 def _target_mhz(text: str) -> float:
-    from kfgen.hdl.arith.float.params import TARGET_RANGE
+    """``--target-mhz``'s value, by the cores' own rule (:func:`~kfgen.hdl.arith.float.params.check_target`)."""
+    from kfgen.hdl.arith.float.params import TARGET_RANGE, check_target
     try:
-        value = float(text)
+        return check_target(float(text))  # a ParamError is a ValueError
     except ValueError:
-        value = None
-    lo, hi = TARGET_RANGE
-    if value is None or not lo <= value <= hi:
+        lo, hi = TARGET_RANGE
         raise argparse.ArgumentTypeError(f"expected a clock in MHz, a number in {lo:g}..{hi:g}, not {text!r}")
-    return value
 
 
 def add_target_arguments(ap, freq: float) -> None:
