@@ -180,7 +180,7 @@ def _rate(tracks: int, count: int) -> dict:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    out = Path(args.out)
+    out = Path(args.out).resolve()  # a cluster's workers run elsewhere: they get whole paths
     start = time.monotonic()
     rows, dsp_rows, jobs = [], [], []
     with open_runner(args) as runner:
@@ -213,7 +213,7 @@ def main(argv=None) -> int:
         *(f"ECP5 critical path, {r['tracks']} track(s): {r['critical_path']}." for r in rows if "critical_path" in r),
         *(f"ECP5 Fmax by seed, {r['tracks']} track(s): {seeds_text(r)}." for r in rows if "fmax_by_seed" in r),
         flow_note(args.freq, args.seeds),
-        f"Work files in {out}/ ({time.monotonic() - start:.0f} s).",
+        f"Work files in {args.out}/ ({time.monotonic() - start:.0f} s).",
     ]
     print(text + "\n".join(notes))
     (out / "bench.md").write_text(text + "\n".join(notes) + "\n")

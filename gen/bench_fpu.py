@@ -146,7 +146,7 @@ def _work_items(args) -> list[Variant]:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    out = Path(args.out)
+    out = Path(args.out).resolve()  # a cluster's workers run elsewhere: they get whole paths
     start = time.monotonic()
     rows, jobs = [], []
     with open_runner(args) as runner:

@@ -39,7 +39,7 @@ from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, task_
 
 from .bench_ukf import BRAM36_BITS
 from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
-                    seeds_text, short_path, target_note, target_tag, write_core, xilinx_task)
+                    seeds_text, short_path, target_note, target_tag, write_cores, xilinx_task)
 
 __all__ = ["MODELS", "PES", "cycles_table", "resources_table", "render", "main"]
 
@@ -154,20 +154,19 @@ def main(argv=None) -> int:
     resolve_freq(args)
     out = Path(args.out).resolve()
     seconds, rows = {}, []
-    t0 = time.monotonic()
     try:
-        for R in MODELS:
-            for p in PES:
-                params = ImmParams(models=R, pes=p, name=f"imm_r{R}_p{p}{target_tag(args.target_mhz)}",
-                                   target_mhz=args.target_mhz)
-                work, man = write_core(CORE, params, out)
-                rows.append({"R": R, "pes": p, "top": params.name, "work": work, "cycles": man["cycles"]["iterate"],
-                             "bounds": man["bounds"], "engine": man["engine"], "div_sqrt": params.div_sqrt,
-                             "overhead": engine_overhead(man), **({"timing": man["timing"]} if "timing" in man else {})})
-        seconds["generating the cores"] = time.monotonic() - t0
-        big = [r for r in rows if r["R"] == max(MODELS)]
-        t0 = time.monotonic()
         with open_runner(args) as runner:
+            t0 = time.monotonic()
+            configs = [ImmParams(models=R, pes=p, name=f"imm_r{R}_p{p}{target_tag(args.target_mhz)}",
+                                 target_mhz=args.target_mhz) for R in MODELS for p in PES]
+            for params, (work, man) in zip(configs, write_cores(CORE, configs, out, runner)):
+                rows.append({"R": params.models, "pes": params.pes, "top": params.name, "work": work,
+                             "cycles": man["cycles"]["iterate"], "bounds": man["bounds"], "engine": man["engine"],
+                             "div_sqrt": params.div_sqrt, "overhead": engine_overhead(man),
+                             **({"timing": man["timing"]} if "timing" in man else {})})
+            seconds["generating the cores"] = time.monotonic() - t0
+            big = [r for r in rows if r["R"] == max(MODELS)]
+            t0 = time.monotonic()
             jobs = []
             if not args.no_synth:
                 jobs += [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in big[::-1]

@@ -155,7 +155,7 @@ def _save(out: Path, rows: list[dict]) -> list[dict]:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    out = Path(args.out)
+    out = Path(args.out).resolve()  # a cluster's workers run elsewhere: they get whole paths
     points = (SLIDES if args.points != "sweep" else []) + (SWEEP if args.points != "slides" else [])
     start = time.monotonic()
     rows = []

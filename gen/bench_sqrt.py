@@ -23,7 +23,7 @@ from pathlib import Path
 from kfgen.sim.cluster import add_arguments, collect, failed, shared
 
 from .bench_ukf import ON_CHIP_APP
-from .synth import add_target_arguments, ecp5_fmax, md_table, resolve_freq, target_tag, write_core, xilinx_task
+from .synth import add_target_arguments, ecp5_fmax, md_table, resolve_freq, target_tag, write_cores, xilinx_task
 
 __all__ = ["cycle_rows", "cycles_table", "main"]
 
@@ -83,18 +83,18 @@ def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, fo
     from kfgen.sim.ukf.app import load_app
 
     sizes = load_app(ON_CHIP_APP).core_parameters()
-    rows, new = [], []
+    rows, configs = [], []
     for p in pes:
         for form in forms:
             if form == "ldl" and p in (done or {}):
                 rows.append({**done[p], "form": form, "reused": True})
                 continue
-            params = UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True, target_mhz=target_mhz,
-                               name=f"ukf_oc_{form}_p{p}{target_tag(target_mhz)}")
-            work, manifest = write_core(CORE, params, out)
-            new.append({"pes": p, "form": form, "top": params.name, "work": work,
-                        "iteration": manifest["cycles"]["iteration"]})
-            rows.append(new[-1])
+            configs.append(UkfParams(**sizes, pes=p, form=form, app=ON_CHIP_APP, on_chip=True, target_mhz=target_mhz,
+                                     name=f"ukf_oc_{form}_p{p}{target_tag(target_mhz)}"))
+            rows.append({"pes": p, "form": form, "top": configs[-1].name})
+    new = [r for r in rows if not r.get("reused")]
+    for r, (work, manifest) in zip(new, write_cores(CORE, configs, out, runner)):
+        r.update(work=work, iteration=manifest["cycles"]["iteration"])
     jobs = [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in new[::-1]]
     if fmax:
         jobs += [(r, "ecp5", ecp5_fmax(r["work"], r["top"], freq, tuple(seeds), runner=runner)) for r in new[::-1]]

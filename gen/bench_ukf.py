@@ -50,7 +50,7 @@ from kfgen.sim.cluster import (add_arguments, collect, failed, runner_argv as _r
                                timed)
 
 from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
-                    seeds_text, short_path, target_note, target_tag, write_core, xilinx_task)
+                    seeds_text, short_path, target_note, target_tag, write_cores, xilinx_task)
 
 __all__ = ["CHAPTER_CYCLES", "CHAPTER_RESOURCES", "CHAPTER_SYSTEM_US", "STEPS", "bounds", "measured_cycles",
            "cycles_table", "resources_table", "fmax_table", "system_table", "render", "main"]
@@ -324,17 +324,18 @@ ON_CHIP_APP = "nanosat:Nanosat"
 TRACKER_APP = "tracker:Tracker"
 
 
-def on_chip_rows(pes: list[int], out: Path, app: str = ON_CHIP_APP, target_mhz: float | None = None) -> list[dict]:
-    """Part 5's cores of ``app`` (for ``target_mhz``), generated: one row per P."""
+def on_chip_rows(cores: list[tuple[str, int]], out: Path, target_mhz: float | None = None,
+                 runner=None) -> list[dict]:
+    """Part 5's cores, ``(app, P)`` each (for ``target_mhz``), generated (as ``runner``'s tasks,
+    if given): one row each."""
     from kfgen.hdl.linalg.schedule import TRIG_FIELDS
     from kfgen.sim.ukf.app import load_app  # (also hands the application loader to hdl)
-    sizes = load_app(app).core_parameters()
-    tag = "oc" if app == ON_CHIP_APP else "trk"
+    configs = [UkfParams(**load_app(app).core_parameters(), app=app, on_chip=True, pes=p, target_mhz=target_mhz,
+                         name=f"ukf_{'oc' if app == ON_CHIP_APP else 'trk'}_p{p}{target_tag(target_mhz)}")
+               for app, p in cores]
     rows = []
-    for p in pes:
-        params = UkfParams(**sizes, app=app, on_chip=True, pes=p, target_mhz=target_mhz,
-                           name=f"ukf_{tag}_p{p}{target_tag(target_mhz)}")
-        work, manifest = write_core(CORE, params, out)
+    for params, (work, manifest) in zip(configs, write_cores(CORE, configs, out, runner)):
+        p, app = params.pes, params.app
         eng = manifest["engine"]
         mc = Machine(1, eng["fma_latency"], eng["div_latency"], eng["sqrt_latency"],
                      read_latency=eng["read_latency"], unit_register=eng["unit_register"],
@@ -405,33 +406,35 @@ def main(argv=None) -> int:
     resolve_freq(args)
     out = Path(args.out).resolve()  # the testbench runs in its own directory and reads the manifest
     seconds, rows = {}, []
-    t0 = time.monotonic()
     try:
-        for p in args.pes:
-            params = UkfParams(pes=p, name=f"ukf_p{p}{target_tag(args.target_mhz)}", target_mhz=args.target_mhz)
-            work, manifest = write_core(CORE, params, out)
-            rows.append({"pes": p, "top": params.name, "work": work, "manifest_cycles": manifest["cycles"],
-                         "store_bits": manifest["engine"]["program_store"]["bits"], "engine": manifest["engine"],
-                         "div_sqrt": params.div_sqrt, "overhead": engine_overhead(manifest),
-                         **({"timing": manifest["timing"]} if "timing" in manifest else {})})
-        engine = manifest["engine"]
-        bound = bounds(UkfParams(), engine)
-        # each P's chain bound, by its unit latencies (P = 1's iterative square root is
-        # shorter); the last row's is the one just computed
-        chains = {tuple(engine[k] for k in LATENCIES): sum(bound["chain"].values())}
-        for r in rows:
-            lat = tuple(r["engine"][k] for k in LATENCIES)
-            if lat not in chains:
-                chains[lat] = sum(bounds(UkfParams(), r["engine"])["chain"].values())
-            r["chain"] = chains[lat]
-        chip = [] if args.no_on_chip else on_chip_rows(args.on_chip_pes, out, target_mhz=args.target_mhz) \
-            + on_chip_rows(args.tracker_pes, out, TRACKER_APP, args.target_mhz)
-        seconds["generating the cores and the bounds"] = time.monotonic() - t0
-        t0 = time.monotonic()
-        cache = out / "verilator"
+        # Every job at once, the longest first (the largest P's synthesis), so that the workers
+        # finish together; a core's system runs after its own build. The cores are generated
+        # on the workers too.
         with shared(args) as runner:
-            # Every job at once, the longest first (the largest P's synthesis), so that the
-            # workers finish together; a core's system runs after its own build.
+            t0 = time.monotonic()
+            configs = [UkfParams(pes=p, name=f"ukf_p{p}{target_tag(args.target_mhz)}", target_mhz=args.target_mhz)
+                       for p in args.pes]
+            for params, (work, manifest) in zip(configs, write_cores(CORE, configs, out, runner)):
+                rows.append({"pes": params.pes, "top": params.name, "work": work, "manifest_cycles": manifest["cycles"],
+                             "store_bits": manifest["engine"]["program_store"]["bits"],
+                             "engine": manifest["engine"], "div_sqrt": params.div_sqrt,
+                             "overhead": engine_overhead(manifest),
+                             **({"timing": manifest["timing"]} if "timing" in manifest else {})})
+            engine = manifest["engine"]
+            bound = bounds(UkfParams(), engine)
+            # each P's chain bound, by its unit latencies (P = 1's iterative square root is
+            # shorter); the last row's is the one just computed
+            chains = {tuple(engine[k] for k in LATENCIES): sum(bound["chain"].values())}
+            for r in rows:
+                lat = tuple(r["engine"][k] for k in LATENCIES)
+                if lat not in chains:
+                    chains[lat] = sum(bounds(UkfParams(), r["engine"])["chain"].values())
+                r["chain"] = chains[lat]
+            apps = [(ON_CHIP_APP, p) for p in args.on_chip_pes] + [(TRACKER_APP, p) for p in args.tracker_pes]
+            chip = [] if args.no_on_chip else on_chip_rows(apps, out, args.target_mhz, runner)
+            seconds["generating the cores and the bounds"] = time.monotonic() - t0
+            t0 = time.monotonic()
+            cache = out / "verilator"
             jobs = []
             if not args.no_synth:
                 jobs += [(r, "xilinx", xilinx_task(runner, r["work"], r["top"])) for r in rows[::-1] + chip[::-1]]

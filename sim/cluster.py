@@ -2,7 +2,8 @@
 
 Every bench (``python -m kfgen.gen.bench*``) and the Monte Carlo runs of ``make plots`` hand
 their independent jobs (a configuration's synthesis, each place-and-route seed, each
-Verilator measurement, each Monte Carlo run) to a :class:`Runner`:
+Verilator measurement, each Monte Carlo run; the engine cores' generation,
+:func:`kfgen.gen.synth.write_cores`) to a :class:`Runner`:
 
 - by default a Dask ``LocalCluster`` sized to the machine (one single-threaded worker process
   per core: the jobs are Yosys, nextpnr and Verilator processes, or numpy);

@@ -49,11 +49,34 @@ def test_serial_runs_here():
     _check(*_run(runner), here=True)
 
 
-def test_local_cluster():
-    """A LocalCluster the runner starts: the same rows, computed in its worker process."""
+def _generate(runner, out: Path):
+    """Two small cores, as a bench generates them (:func:`kfgen.gen.synth.write_cores`): the
+    results, every file's bytes, and the tasks handed to ``runner``."""
+    from kfgen.gen.synth import write_cores
+    from kfgen.hdl.arith.float.descriptor import CORE
+    from kfgen.hdl.arith.float.params import FpuParams
+
+    names = []
+    submit = runner.submit
+    runner.submit = lambda fn, *a, name=None, **k: names.append(name) or submit(fn, *a, name=name, **k)
+    configs = [FpuParams(op=op, format="binary16", name=f"gen_{op}") for op in ("add", "mul")]
+    made = write_cores(CORE, configs, out, runner)
+    files = {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    return [(w.relative_to(out), m) for w, m in made], files, names
+
+
+def test_local_cluster(tmp_path):
+    """A LocalCluster the runner starts: the same rows, computed in its worker process; the
+    cores a bench generates there are the ones generated here, byte for byte."""
+    here = _generate(Runner(serial=True), tmp_path / "here")
+    assert [w for w, _ in here[0]] == [Path("gen_add"), Path("gen_mul")] and here[2] == [], \
+        "serial: in order, in this process"
     with open_runner(argparse.Namespace(workers=1)) as runner:
         assert "LocalCluster of 1 worker process" in runner.where
         _check(*_run(runner), here=False)
+        there = _generate(runner, tmp_path / "there")
+    assert there[2] == ["generate-gen_add", "generate-gen_mul"], "one task a core"
+    assert there[:2] == here[:2] and len(here[1]) > 4
 
 
 #: docs/benchmarks.md's commands for a cluster started apart (its own scheduler and worker).
