@@ -61,6 +61,7 @@ def _generate(runner, out: Path):
     runner.submit = lambda fn, *a, name=None, **k: names.append(name) or submit(fn, *a, name=name, **k)
     configs = [FpuParams(op=op, format="binary16", name=f"gen_{op}") for op in ("add", "mul")]
     made = write_cores(CORE, configs, out, runner)
+    runner.submit = submit
     files = {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
     return [(w.relative_to(out), m) for w, m in made], files, names
 
@@ -75,8 +76,17 @@ def test_local_cluster(tmp_path):
         assert "LocalCluster of 1 worker process" in runner.where
         _check(*_run(runner), here=False)
         there = _generate(runner, tmp_path / "there")
+        # a core of an application (--app): the worker loads it as the command line does
+        from kfgen.gen.synth import write_cores
+        from kfgen.hdl.ukf.descriptor import CORE
+        from kfgen.hdl.ukf.params import UkfParams
+        from kfgen.sim.ukf.app import load_app
+        app = "nanosat:Nanosat"
+        params = UkfParams(**load_app(app).core_parameters(), app=app, on_chip=True, name="gen_oc")
+        [(work, manifest)] = write_cores(CORE, [params], tmp_path / "app", runner)
     assert there[2] == ["generate-gen_add", "generate-gen_mul"], "one task a core"
     assert there[:2] == here[:2] and len(here[1]) > 4
+    assert manifest["cycles"]["iteration"] > 0 and (work / "gen_oc.v").is_file()
 
 
 #: docs/benchmarks.md's commands for a cluster started apart (its own scheduler and worker).
