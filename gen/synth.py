@@ -52,10 +52,7 @@ def _write_named(core: str, params, out: Path) -> tuple[Path, dict]:
     """:func:`write_core` of the core named ``core``: what a worker is handed (a name, not the
     descriptor and its functions)."""
     from .cores import discover
-    descriptor = discover()[core]
-    if descriptor.app is not None and getattr(params, "app", None):
-        descriptor.app(params.app)  # as the command line does: the application's loader, in this process
-    return write_core(descriptor, params, out)
+    return write_core(discover()[core], params, out)
 
 
 def write_cores(core, configs, out: Path, runner=None) -> list[tuple[Path, dict]]:

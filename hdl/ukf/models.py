@@ -3,7 +3,8 @@
 The application is the user's Python (:class:`kfgen.sim.ukf.app.UkfApplication`), loaded by
 the layer that knows where applications live: ``hdl`` imports neither ``gen`` nor ``sim``, so
 the loader is handed in (:func:`set_loader`; :mod:`kfgen.sim.ukf.app` registers its
-``load_app`` when it is imported, and the command line imports it). The functions are traced
+``load_app`` when it is imported, and :func:`kfgen.gen.cores.bind` when it binds the UKF core,
+as the command line and a bench's workers do). The functions are traced
 once per configuration (:func:`kfgen.hdl.engine.trace.trace`):
 
 * f(x, w, u, dt) with ``x`` (n), ``w`` (nw) the sigma point's parts and ``u`` (nu) the control

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from kfgen.gen.synth import write_cores
 from kfgen.sim.cluster import Runner, add_arguments, collect, failed, open_runner, runner_argv, timed
 
 
@@ -52,7 +53,6 @@ def test_serial_runs_here():
 def _generate(runner, out: Path):
     """Two small cores, as a bench generates them (:func:`kfgen.gen.synth.write_cores`): the
     results, every file's bytes, and the tasks handed to ``runner``."""
-    from kfgen.gen.synth import write_cores
     from kfgen.hdl.arith.float.descriptor import CORE
     from kfgen.hdl.arith.float.params import FpuParams
 
@@ -77,7 +77,6 @@ def test_local_cluster(tmp_path):
         _check(*_run(runner), here=False)
         there = _generate(runner, tmp_path / "there")
         # a core of an application (--app): the worker loads it as the command line does
-        from kfgen.gen.synth import write_cores
         from kfgen.hdl.ukf.descriptor import CORE
         from kfgen.hdl.ukf.params import UkfParams
         from kfgen.sim.ukf.app import load_app
