@@ -34,9 +34,10 @@ from dataclasses import dataclass
 from fractions import Fraction
 from math import isqrt
 
-from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 
+from ..linalg.matrix import (add, block, cholesky, const, fill, forward_substitute, ldl, mirrored, product,
+                             row, solve_ldl, transpose)
 from ..linalg.program import Copy, CopySign, Div, Dot, Layout, Max, Program, Sqrt
 from .params import UkfParams, covariance_region
 
@@ -55,10 +56,6 @@ def _sqrt(q: Fraction, bits: int = 256) -> Fraction:
     r = isqrt(num // q.denominator)
     exact = r * r * q.denominator == num
     return Fraction(r, 1 << bits) + (0 if exact else Fraction(1, 1 << (bits + 1)))
-
-
-def _word(fmt, value: Fraction) -> int:
-    return round_to_format(fmt, int(value < 0), abs(value))[0]
 
 
 def simplex_rows(M: int, w0) -> tuple[Fraction, list[Fraction], list[Fraction]]:
@@ -155,16 +152,20 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
         U = lay.add("Udiv", n, m)  # after the division by D
         K = lay.add("K", n, m)
     inn = lay.add("innov", m)
-    one = lay.const("one", [_word(fmt, Fraction(1))])(0, 0)
-    w1 = lay.const("w1", [_word(fmt, W1)])(0, 0)
-    sig_c = lay.const("sigma_c", [_word(fmt, v) for v in c])
-    sig_d = lay.const("sigma_d", [_word(fmt, v) for v in d])
+    one = const(lay, fmt, "one", [1])(0, 0)
+    w1 = const(lay, fmt, "w1", [W1])(0, 0)
+    sig_c = const(lay, fmt, "sigma_c", c)
+    sig_d = const(lay, fmt, "sigma_d", d)
     if sq:  # the square roots of the weights, for the triangularisations' columns
-        sw = lay.const("sqrt_w", [_word(fmt, _sqrt(W1)), _word(fmt, _sqrt(Fraction(params.w0)))])
+        sw = const(lay, fmt, "sqrt_w", [_sqrt(W1), _sqrt(Fraction(params.w0))])
         sw1, sw0 = sw(0, 0), (sw(0, 1) if params.w0 else None)
         tiny = lay.const("tiny", [1 << fmt.frac_bits])(0, 0)  # the smallest normal: 1 / tiny is finite
         ncols = qr_columns(params)
     ti = {ij: t for t, ij in enumerate(tri)}
+
+    def packed(reg):  # a view of the packed triangle's region, by P^a's (row, column)
+        return lambda i, j: reg(ti[i, j])
+    Lp = packed(L)
 
     def A(i, j):  # P^a's lower triangle, block by block (4)
         for reg, (b0, b1) in zip((P, Q, R), _blocks(params)):
@@ -179,60 +180,14 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     # the core runs before an iteration that follows such a write (a prologue).
     nz = Program("noise", lay, fmt) if params.on_chip or sq else sg
 
-    def ldl(prog, nb, a, f, l, dd, rd):
-        """LDL^T of an nb x nb block by (23)-(24), column by column; F_ij = L_ij D_j.
-
-        Returns the addresses of F (column 0 is A's own), L and D. Every pivot D_j, the
-        first a copy of A_00, is checked (err_pivot)."""
-        fa, la = {}, {}
-        for j in range(nb):
-            for i in range(j + 1, nb):
-                fa[i, j] = a(i, j) if j == 0 else f(i, j)
-        for j in range(nb):
-            if j == 0:
-                prog.emit(Copy(dd(j), a(j, j), "pivot"))
-            else:
-                prog.emit(Dot(dd(j), a(j, j), [(la[j, k], fa[j, k], True) for k in range(j)],
-                              "pivot"))
-            for i in range(j + 1, nb):
-                if j:
-                    prog.emit(Dot(fa[i, j], a(i, j), [(la[i, k], fa[j, k], True) for k in range(j)]))
-            if j + 1 < nb:
-                prog.emit(Div(rd(j), one, dd(j)))
-            for i in range(j + 1, nb):
-                la[i, j] = l(i, j)
-                prog.emit(Dot(la[i, j], None, [(fa[i, j], rd(j), False)]))
-        return fa, la
-
-    def cholesky(prog, b0, b1):
-        """The sqrt form's Cholesky factor of the block [b0, b1) of P^a (Q or R), column by
-        column: its diagonal into s, its lower part into L; d_j = A_jj - sum_k S_jk^2 is
-        checked as a pivot. No 1 / D_j: in binary16 the reciprocal of a variance such as
-        1e-6 overflows, that of its square root does not."""
-        for j in range(b0, b1):
-            if j == b0:
-                prog.emit(Copy(D(j), A(j, j), "pivot"))
-            else:
-                prog.emit(Dot(D(j), A(j, j), [(L(ti[j, k]), L(ti[j, k]), True) for k in range(b0, j)], "pivot"))
-            prog.emit(Sqrt(s(j), D(j)))
-            prog.emit(Div(rD(j), one, s(j)))
-            for i in range(j + 1, b1):
-                f = A(i, j)
-                if j > b0:
-                    f = F(ti[i, j])
-                    prog.emit(Dot(f, A(i, j), [(L(ti[i, k]), L(ti[j, k]), True) for k in range(b0, j)]))
-                prog.emit(Dot(L(ti[i, j]), None, [(f, rD(j), False)]))
-
-    lsg = {}
-    for block, (b0, b1) in enumerate(_blocks(params)):
+    for k, (b0, b1) in enumerate(_blocks(params)):
         if sq:  # P's factor is kept; Q's and R's are Cholesky factors
-            if block:
-                cholesky(nz, b0, b1)
+            if k:
+                cholesky(nz, block(A, b0, b0), b1 - b0, block(Lp, b0, b0), block(s, b0), block(D, b0),
+                         block(rD, b0), block(packed(F), b0, b0), one)
             continue
-        _, la = ldl(sg if block == 0 else nz, b1 - b0, lambda i, j, b0=b0: A(i + b0, j + b0),
-            lambda i, j, b0=b0: F(ti[i + b0, j + b0]), lambda i, j, b0=b0: L(ti[i + b0, j + b0]),
-            lambda j, b0=b0: D(j + b0), lambda j, b0=b0: rD(j + b0))
-        lsg.update({(i + b0, j + b0): v for (i, j), v in la.items()})
+        ldl(sg if k == 0 else nz, block(A, b0, b0), b1 - b0, block(packed(F), b0, b0), block(Lp, b0, b0),
+            block(D, b0), block(rD, b0), one)
     for j in range(M if not sq else 0):  # sqrt(D) (22), folded into sigma's rows
         prog = sg if j < n else nz
         prog.emit(Sqrt(s(j), D(j)))
@@ -240,12 +195,12 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
         prog.emit(Dot(e(j), None, [(s(j), sig_d(0, j), False)]))
 
     def l2(rr, j):  # L2's entry (unit diagonal)
-        return one if rr == j else lsg[rr, j]
+        return one if rr == j else Lp(rr, j)
 
     def factor(rr, k):  # the sqrt form's Cholesky factor of P^a: S, then Q's and R's
         if rr < n:
             return P(rr, k)
-        return s(rr) if rr == k else L(ti[rr, k])
+        return s(rr) if rr == k else Lp(rr, k)
 
     def cterm(rr, k):  # L1's entry times c_k (sigma's row k): L2 g, or the factor's times c_k
         return (factor(rr, k), sig_c(0, k), False) if sq else (l2(rr, k), g(k), False)
@@ -253,8 +208,8 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     def dterm(rr, k):  # L1's entry times d_k
         return (factor(rr, k), sig_d(0, k), False) if sq else (l2(rr, k), e(k), False)
 
-    for block, (b0, b1) in enumerate(_blocks(params)):
-        prog = sg if block == 0 else nz
+    for b, (b0, b1) in enumerate(_blocks(params)):
+        prog = sg if b == 0 else nz
         for rr in range(b0, b1):
             xa = x(rr) if rr < n else None  # x^a = [x; 0; 0] (3)
             base = {rr + 1: xa}  # base[k] = T_rk, the suffix sum from column k
@@ -286,11 +241,9 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     def moments(prog, pts, dim, dd, delta):
         """Differences from point 0, d_ik = pt_k[i] - pt_0[i], and the mean's offset from
         point 0, delta_i = W1 sum_k d_ik (10)/(13) with sum W = 1; d_i0 = 0."""
-        for i in range(dim):
-            for k in range(1, N):
-                prog.emit(Dot(dd(i, k - 1), pts(k, i), [(one, pts(0, i), True)]))
-        for i in range(dim):
-            prog.emit(Dot(delta(i), None, [(w1, dd(i, k), False) for k in range(N - 1)]))
+        add(prog, dd, transpose(block(pts, 1)), lambda i, k: pts(0, i), one, dim, N - 1, neg=True)
+        # delta^T = (w1 ... w1) dd^T: the row of sums, entry i summing row i of dd
+        product(prog, transpose(delta), fill(w1), transpose(dd), 1, N - 1, dim)
 
     def covariance(prog, da, dela, ra, db, delb, rb, G, dst, lower, check=None):
         """(11), (14), (15) by (27)-(28) about point 0 instead of the mean (the shifted sums):
@@ -303,13 +256,11 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
                               check))
 
     moments(pr, chif, n, dx, dlx)
-    for i in range(n):  # x^- = chi_0 + delta (10)
-        pr.emit(Dot(x(i), chif(0, i), [(one, dlx(i), False)]))
+    add(pr, x, row(chif, 0), dlx, one, n)  # x^- = chi_0 + delta (10)
     if sq:
         return _sqrt_form(params, lay, sg, nz, pr, u, (one, tiny), sw1, sw0, ncols, P, x, dx, dlx, dz, dlz,
                           moments, inn)
-    covariance(pr, dx, dlx, n, dx, dlx, n, Gx,
-               lambda i, j: (P(i, j),) if i == j else (P(i, j), P(j, i)), True, "finite")
+    covariance(pr, dx, dlx, n, dx, dlx, n, Gx, mirrored(P), True, "finite")
 
     # ---- update --------------------------------------------------------------------------
     up = Program("update", lay, fmt)
@@ -318,25 +269,13 @@ def build_ukf(params: UkfParams) -> UkfPrograms:
     covariance(up, dx, dlx, n, dz, dlz, m, Gxz, Pxz, False)  # Pxz (15)
     for i in range(m):
         up.emit(Dot(inn(i), z(i), [(one, chih(0, i), True), (one, dlz(i), True)]))  # z - z^
-    _, ls = ldl(up, m, S, FS, LS, DS, rDS)
-    for j in range(m - 1, m):
-        up.emit(Div(rDS(j), one, DS(j)))
-    for p in range(n):  # K L D L^T = Pxz (16), one row of K at a time
-        y = {0: Pxz(p, 0)}
-        for j in range(1, m):
-            y[j] = Y(p, j)
-            up.emit(Dot(y[j], Pxz(p, j), [(ls[j, i], y[i], True) for i in range(j)]))
-        for j in range(m):
-            up.emit(Dot(U(p, j) if j < m - 1 else K(p, j), None, [(y[j], rDS(j), False)]))
-        for j in range(m - 2, -1, -1):
-            up.emit(Dot(K(p, j), U(p, j), [(ls[i, j], K(p, i), True) for i in range(m - 1, j, -1)]))
-    for i in range(n):  # (17): K's column 0 is solved last, so it comes last
-        up.emit(Dot(x(i), x(i), [(K(i, j), inn(j), False) for j in range(m - 1, -1, -1)], "finite"))
-    for i in range(n):  # (19), the lower triangle mirrored
-        for j in range(i + 1):
-            dst = (P(i, j),) if i == j else (P(i, j), P(j, i))
-            up.emit(Dot(dst, P(i, j), [(Pxz(i, l), K(j, l), True) for l in range(m - 1, -1, -1)],
-                        "finite"))
+    ldl(up, S, m, FS, LS, DS, rDS, one)
+    solve_ldl(up, K, Pxz, n, m, LS, DS, rDS, one, Y, U)  # K L D L^T = Pxz (16)
+    # (17): K's column 0 is solved last, so it comes last
+    product(up, x, K, inn, n, m, 1, init=x, reverse=True, check="finite")
+    # (19), the lower triangle mirrored
+    product(up, mirrored(P), Pxz, transpose(K), n, m, n, init=P, neg=True, lower=True, reverse=True,
+            check="finite")
     if models is None:
         return UkfPrograms(params, fmt, lay, sg, pr, up)
     return UkfPrograms(params, fmt, lay, sg, pr, up, _iteration(params, models, lay, sg, pr, up, u), nz)
@@ -350,7 +289,7 @@ def _iteration(params, models, lay, sg, pr, up, u) -> Program:
     fmt, n, nw, N = params.fmt, params.n, params.nw, params.N
     chi, chif, chih = lay["sigma_points"], lay["sigma_points_f"], lay["sigma_points_h"]
     consts = list(dict.fromkeys(models.f.consts + models.h.consts))
-    cw = lay.const("model_consts", [_word(fmt, Fraction(c)) for c in consts]) if consts else None
+    cw = const(lay, fmt, "model_consts", consts) if consts else None
     caddr = {c: cw(0, i) for i, c in enumerate(consts)}
     it = Program("iteration", lay, fmt)
     it.ops.extend(sg.ops)
@@ -537,14 +476,8 @@ def _sqrt_form(params, lay, sg, nz, pr, u, consts, sw1, sw0, ncols, S, x, dx, dl
     t = lay.add("ypart", m)
     for i in range(m):
         up.emit(Div(rSz(i), one, Sz(i, i)))
-    for i in range(m):
-        src = inn(i)
-        if i:
-            up.emit(Dot(t(i), inn(i), [(Sz(i, j), y(j), True) for j in range(i)]))
-            src = t(i)
-        up.emit(Dot(y(i), None, [(src, rSz(i), False)]))
-    for i in range(n):  # x^+ = x^- + Kb y
-        up.emit(Dot(x(i), x(i), [(Kb(i, j), y(j), False) for j in range(m)], "finite"))
+    forward_substitute(up, y, inn, Sz, m, rdiag=rSz, work=t)
+    product(up, x, Kb, y, n, m, 1, init=x, check="finite")  # x^+ = x^- + Kb y
     pd = lay.add("P_diag", n)  # the variances P_ii = sum_j S_ij^2 (the stream ports' output)
     for i in range(n):
         up.emit(Dot(pd(i), None, [(S(i, j), S(i, j), False) for j in range(i + 1)]))
