@@ -40,10 +40,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from fractions import Fraction
 
-from kfgen.hdl.arith.float.exact import round_to_format
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.schur.program import schur_program
 
+from ..linalg.matrix import block, const, fill, hadamard, mirrored, product, row, transpose
 from ..linalg.program import Div, Dot, Exp, Layout, Max, Program, Sqrt
 
 __all__ = ["ImmSizes", "ImmPrograms", "build_imm"]
@@ -74,11 +74,6 @@ class ImmPrograms:
     @property
     def steps(self):
         return {"iterate": self.iterate}
-
-
-def _word(fmt, value) -> int:
-    value = Fraction(value)
-    return round_to_format(fmt, int(value < 0), abs(value))[0]
 
 
 def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
@@ -133,28 +128,20 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
     xu = lay.add("x_sum", n)
     dx = lay.add("dx_com", R, n)
     mdx = lay.add("mu_dx_com", R, n)
-    one = lay.const("one", [_word(fmt, 1)])(0, 0)
-    nhalf = lay.const("minus_half", [_word(fmt, Fraction(-1, 2))])(0, 0)
+    one = const(lay, fmt, "one", [1])(0, 0)
+    nhalf = const(lay, fmt, "minus_half", [Fraction(-1, 2)])(0, 0)
 
     pr = Program("iterate", lay, fmt)
 
     def dot(dst, init, terms, check=None):
         return pr.emit(Dot(dst, init, terms, check))
 
-    def sym(reg, row0, i, j):
-        """The destination of a symmetric matrix's entry (i >= j): itself and its mirror."""
-        return (reg(row0 + i, j),) if i == j else (reg(row0 + i, j), reg(row0 + j, i))
-
-    # ---- MIX -----------------------------------------------------------------------------
-    for j in range(R):
-        for i in range(R):
-            dot(pm(i, j), None, [(pi(i, j), mu(i), False)])
+    # ---- MIX (column by column: model j's sums) --------------------------------------------
+    hadamard(pr, transpose(pm), transpose(pi), lambda j, i: mu(i), R, R)
     for j in range(R):  # c_j, from the exact products (its own accumulation)
         dot(c(j), None, [(pi(i, j), mu(i), False) for i in range(R)], "pivot")
         pr.emit(Div(rc(j), one, c(j)))
-    for j in range(R):
-        for i in range(R):
-            dot(W(i, j), None, [(pm(i, j), rc(j), False)])
+    hadamard(pr, transpose(W), transpose(pm), lambda j, i: rc(j), R, R)
     for j in range(R):
         for k in range(n):  # x0 = (sum_i pi_ij mu_i x_i) / c_j: the sum while the division runs
             dot(x0u(j, k), None, [(pm(i, j), xm(i, k), False) for i in range(R)])
@@ -167,31 +154,20 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
             for s in range(r + 1):
                 terms = [(W(i, j), Pm(i * n + r, s), False) for i in range(R)]  # the early terms first
                 terms += [(we(i * R + j, r), e(i * R + j, s), False) for i in range(R)]
-                dot(sym(P0, j * n, r, s), None, terms)
+                dot(mirrored(block(P0, j * n))(r, s), None, terms)
 
     # ---- KF, model by model ---------------------------------------------------------------
     for j in range(R):
         fr, hr = j * n, j * d
-        for r in range(n):
-            dot(xp(j, r), None, [(F(fr + r, k), x0(j, k), False) for k in range(n)])
-        for r in range(n):
-            for s in range(n):
-                dot(FP(fr + r, s), None, [(F(fr + r, k), P0(fr + k, s), False) for k in range(n)])
-        for r in range(n):
-            for s in range(r + 1):
-                dot(sym(Pp, fr, r, s), Q(fr + r, s), [(FP(fr + r, k), F(fr + s, k), False)
-                                                      for k in range(n)])
-        for i in range(d):
-            for s in range(n):
-                dot(HP(hr + i, s), None, [(H(hr + i, k), Pp(fr + k, s), False) for k in range(n)])
-        for i in range(d):
-            dot(y(j, i), z(i), [(H(hr + i, k), xp(j, k), True) for k in range(n)])
-        pivots = set(graph.pivots)
-        for i in range(d):
-            for k in range(i + 1):
-                chk = "pivot" if graph.inputs[k, i] in pivots else None
-                dot(sym(S, hr, i, k), Rm(hr + i, k), [(HP(hr + i, l), H(hr + k, l), False)
-                                                      for l in range(n)], chk)
+        Fj, Hj, Ppj, HPj = block(F, fr), block(H, hr), block(Pp, fr), block(HP, hr)
+        product(pr, row(xp, j), Fj, row(x0, j), n, n, 1)  # x^- = F x0
+        product(pr, block(FP, fr), Fj, block(P0, fr), n, n, n)  # P^- = F P0 F^T + Q
+        product(pr, mirrored(Ppj), block(FP, fr), transpose(Fj), n, n, n, init=block(Q, fr), lower=True)
+        product(pr, HPj, Hj, Ppj, d, n, n)
+        product(pr, row(y, j), Hj, row(xp, j), d, n, 1, init=z, neg=True)  # y = z - H x^-
+        pivots = set(graph.pivots)  # S = H P^- H^T + R, its Schur pivots checked
+        product(pr, mirrored(block(S, hr)), HPj, transpose(Hj), d, n, d, init=block(Rm, hr), lower=True,
+                check=lambda i, k: "pivot" if graph.inputs[k, i] in pivots else None)
         # S^-1 and |S|: the Schur unit's graph, one engine operation a node
         addr = {}
         for (i, k), node in graph.inputs.items():
@@ -223,19 +199,15 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
             return addr[graph.inverse[min(i, k), max(i, k)]]
 
         det = addr[graph.det]
-        for r in range(n):  # K = (H P^-)^T S^-1
-            for i in range(d):
-                dot(K(fr + r, i), None, [(HP(hr + k, r), sinv(k, i), False) for k in range(d)])
-        for r in range(n):
-            dot(xm(j, r), xp(j, r), [(K(fr + r, i), y(j, i), False) for i in range(d)], "finite")
-        for r in range(n):
-            for s in range(r + 1):
-                dot(sym(Pm, fr, r, s), Pp(fr + r, s), [(K(fr + r, i), HP(hr + i, s), True)
-                                                       for i in range(d)], "finite")
+        Kj = block(K, fr)
+        product(pr, Kj, transpose(HPj), sinv, n, d, d)  # K = (H P^-)^T S^-1
+        product(pr, row(xm, j), Kj, row(y, j), n, d, 1, init=row(xp, j), check="finite")  # x = x^- + K y
+        product(pr, mirrored(block(Pm, fr)), Kj, HPj, n, d, n, init=Ppj, neg=True, lower=True,
+                check="finite")  # P = P^- - K (H P^-)
         for i in range(d):  # t = -q / 2 = (-y / 2)^T S^-1 y, the halving while S^-1 is formed
             dot(yh(j, i), None, [(y(j, i), nhalf, False)])
             dot(v(j, i), None, [(sinv(i, k), y(j, k), False) for k in range(d)])
-        dot(t(j), None, [(yh(j, i), v(j, i), False) for i in range(d)])
+        product(pr, fill(t(j)), transpose(row(yh, j)), row(v, j), 1, d, 1)  # t = yh^T v
         pr.emit(Sqrt(sd(j), det, "pivot"))
         pr.emit(Div(rsd(j), one, sd(j)))
 
@@ -251,8 +223,7 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
         dot(w(j), None, [(a(j), ex(j), False)])
     dot(sw(0), None, [(one, w(j), False) for j in range(R)], "pivot")
     pr.emit(Div(rsw(0), one, sw(0)))
-    for j in range(R):
-        dot(mu(j), None, [(w(j), rsw(0), False)], "finite")
+    hadamard(pr, mu, w, fill(rsw(0)), R, check="finite")
     for r in range(n):  # x = (sum_j w_j x_j) / sum_j w_j: the sum while the division runs
         dot(xu(r), None, [(w(j), xm(j, r), False) for j in range(R)])
         dot(x(r), None, [(xu(r), rsw(0), False)], "finite")
@@ -264,5 +235,5 @@ def build_imm(sizes: ImmSizes, fmt="binary32") -> ImmPrograms:
         for s in range(r + 1):
             terms = [(mu(j), Pm(j * n + r, s), False) for j in range(R)]  # the early terms first
             terms += [(mdx(j, r), dx(j, s), False) for j in range(R)]
-            dot(sym(P, 0, r, s), None, terms, "finite")
+            dot(mirrored(P)(r, s), None, terms, "finite")
     return ImmPrograms(sizes, fmt, lay, pr)
