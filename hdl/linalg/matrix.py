@@ -17,11 +17,12 @@ A linear Kalman filter in this vocabulary (n states, m measurements; ``x``, ``P`
 ``Q``, ``H``, ``R``, ``z`` regions of the layout, the rest work regions, ``one`` the address
 of the constant 1 from :func:`const`)::
 
-    # predict: x = F x, P = F P F^T + Q (one triangle, mirrored)
+    # predict: x^- = F x (into xp), P = F P F^T + Q (one triangle, mirrored)
     product(prog, xp, F, x, n, n, 1)
     product(prog, FP, F, P, n, n, n)
     product(prog, mirrored(P), FP, transpose(F), n, n, n, init=Q, lower=True)
-    # update: y = z - H x, S = H P H^T + R, K = P H^T S^-1 (by LDL^T), x += K y, P -= K (H P)
+    # update: y = z - H x^-, S = H P H^T + R, K = P H^T S^-1 (by LDL^T), x = x^- + K y,
+    # P -= K (H P)
     product(prog, y, H, xp, m, n, 1, init=z, neg=True)
     product(prog, HP, H, P, m, n, n)
     product(prog, S, HP, transpose(H), m, n, m, init=R, lower=True)
@@ -30,8 +31,11 @@ of the constant 1 from :func:`const`)::
     product(prog, x, K, y, n, m, 1, init=xp, check="finite")
     product(prog, mirrored(P), K, HP, n, m, n, init=P, neg=True, lower=True, check="finite")
 
-(``tests/engine/test_linalg_matrix.py`` runs it against numpy's equations.) An extended Kalman filter is the same with F and H the Jacobians; the
-Joseph form is two more products.
+(``tests/engine/test_linalg_matrix.py`` runs it against numpy's equations.) An extended
+Kalman filter is the same with F and H the Jacobians (x^- = f(x) and the prediction h(x^-)
+computed by the core's models instead of the first products). The Joseph form
+P = (I - K H) P (I - K H)^T + K R K^T is five products: A = I - K H (``init`` a view of the
+constant words 1 and 0), A P, (A P) A^T, K R, and (K R) K^T added to the third, mirrored.
 """
 
 from __future__ import annotations
