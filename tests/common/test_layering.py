@@ -6,8 +6,8 @@ import counted, at module level or inside a function:
 - no import circle anywhere: what two modules both need lives in a third below them;
 - a core's package (every ``hdl`` package whose ``descriptor.py`` defines ``CORE``) is imported
   by no other package of ``hdl``, but for the building blocks :data:`BLOCKS` names with the
-  reason: the engine layer (``hdl/engine``, ``hdl/linalg``) takes no core, and a fifth core
-  needs only it."""
+  reason: the engine layer (``hdl/engine``, ``hdl/linalg``) takes no core but those blocks,
+  so a new core on it needs only it."""
 
 import ast
 from pathlib import Path
