@@ -18,6 +18,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from amaranth.sim import Simulator
+
+from kfgen.hdl.castella.core import Castella
 from kfgen.hdl.castella.descriptor import CORE
 from kfgen.hdl.castella.params import CastellaParams
 
@@ -38,10 +41,6 @@ def simulated_rate(params: CastellaParams, n_tracks: int, count: int = 400) -> f
     partial round at the end does not count a round's handshakes in fewer cycles than it
     takes (that once gave 0.279 for 8 tracks, above the 8/29 the track interval allows).
     """
-    from amaranth.sim import Simulator
-
-    from kfgen.hdl.castella.core import Castella
-
     if not 1 <= n_tracks <= params.tracks:
         raise ValueError(f"n_tracks must be in 1..{params.tracks}, not {n_tracks}")
     dut = Castella(params)

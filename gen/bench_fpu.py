@@ -20,10 +20,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from kfgen.hdl.arith.float.params import OPS, FpuParams
 from kfgen.hdl.arith.float.descriptor import CORE
+from kfgen.hdl.arith.float.div import FloatDiv
+from kfgen.hdl.arith.float.format import FloatFormat
+from kfgen.hdl.arith.float.params import OPS, FpuParams
+from kfgen.hdl.arith.float.sqrt import FloatSqrt
 
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, runner_argv
+from . import bench_timing
 from .synth import ecp5_fmax, flow_note, fmt as _fmt, md_table, short_path, write_core, xilinx_task
 
 __all__ = ["main", "table", "DEFAULT_SET", "Variant"]
@@ -51,10 +55,6 @@ class Variant:
 
 
 def _default_set() -> list[Variant]:
-    from kfgen.hdl.arith.float.div import FloatDiv
-    from kfgen.hdl.arith.float.format import FloatFormat
-    from kfgen.hdl.arith.float.sqrt import FloatSqrt
-
     b32 = FloatFormat.parse("binary32")
     out = [Variant(op) for op in OPS]
     for op, unit in (("div", FloatDiv), ("sqrt", FloatSqrt)):
@@ -170,9 +170,8 @@ def main(argv=None) -> int:
     (out / "bench_fpu.json").write_text(json.dumps(rows, indent=2, sort_keys=True, default=str) + "\n")
     status = 1 if failed(rows) else 0
     if args.ops is None and args.formats is None and not args.no_pnr:  # the default set: then --target-mhz
-        from .bench_timing import main as bench_timing
         print("\n### --target-mhz against nextpnr (python -m kfgen.gen.bench_timing)\n", flush=True)
-        status |= bench_timing(runner_argv(args))
+        status |= bench_timing.main(runner_argv(args))
     return status
 
 

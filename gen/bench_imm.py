@@ -37,6 +37,7 @@ from kfgen.sim.toolchain import ToolMissing
 
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, task_seconds, timed
 
+from . import bench_gen
 from .bench_ukf import BRAM36_BITS
 from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
                     seeds_text, short_path, target_note, target_tag, write_cores, xilinx_task)
@@ -187,8 +188,7 @@ def main(argv=None) -> int:
     report = render(rows, args, seconds)
     gen_ok = True
     if not args.no_gen:
-        from .bench_gen import ROWS, table
-        gen_report, gen_ok = table({"imm": ROWS["imm"]})
+        gen_report, gen_ok = bench_gen.table({"imm": bench_gen.ROWS["imm"]})
         report += "\n" + gen_report
     print(report, end="")
     (out / "bench_imm.md").write_text(report)

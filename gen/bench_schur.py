@@ -24,6 +24,7 @@ from kfgen.hdl.schur.descriptor import CORE
 from kfgen.hdl.schur.params import SchurParams
 
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner
+from kfgen.sim.schur.plots import tradeoff
 
 from .synth import ecp5_fmax, flow_note, fmt, md_table, seeds_text, short_path, write_core, xilinx_task
 
@@ -182,7 +183,6 @@ def main(argv=None) -> int:
     print(report, end="")
     (out / "bench_schur.md").write_text(report)
     if not args.no_pnr:
-        from kfgen.sim.schur.plots import tradeoff
         figures = Path(args.figures)
         figures.mkdir(parents=True, exist_ok=True)
         tradeoff(records, figures / "schur_tradeoff.png")

@@ -16,29 +16,35 @@ F``); the Monte Carlo runs the golden model, which does not depend on it.
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 import time
+from contextlib import redirect_stdout
 from pathlib import Path
 
+from kfgen.hdl.linalg.engine import overhead
+from kfgen.hdl.linalg.schedule import chain_bound
+from kfgen.hdl.ukf.descriptor import CORE
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import machine, programs, schedules
 from kfgen.sim.cluster import add_arguments, collect, failed, shared
+from kfgen.sim.ukf import montecarlo
+from kfgen.sim.ukf.app import load_app
 
-from .bench_ukf import ON_CHIP_APP
 from .synth import add_target_arguments, ecp5_fmax, md_table, resolve_freq, target_tag, write_cores, xilinx_task
 
 __all__ = ["cycle_rows", "cycles_table", "main"]
 
 FORMS = ("ldl", "sqrt")
 
+#: The application of the on-chip cores: the chapter's nanosatellite, whose ldl core is also
+#: part 5 of :mod:`.bench_ukf` (which runs this bench as its part 6, and imports this).
+ON_CHIP_APP = "nanosat:Nanosat"
+
 
 def cycle_rows(pes=(1, 2, 10), target_mhz: float | None = None) -> list[dict]:
     """Per P and form: the three-step core's step cycles and the on-chip core's iteration, as
     their manifests give them (``cycles``), for the cores' ``target_mhz``."""
-    from kfgen.hdl.linalg.engine import overhead
-    from kfgen.hdl.linalg.schedule import chain_bound
-    from kfgen.hdl.ukf.params import UkfParams
-    from kfgen.hdl.ukf.steps import machine, programs, schedules
-    from kfgen.sim.ukf.app import load_app
-
     sizes = load_app(ON_CHIP_APP).core_parameters()
     rows = []
     for p in pes:
@@ -78,10 +84,6 @@ def synth_rows(pes, out: Path, seeds, freq: float, runner, fmax: bool = True, fo
     """Part 2's rows: each P's on-chip core in each form, synthesised and placed; the ldl rows
     of ``done`` (P -> a row of ``bench_ukf``'s part 5, the same core already synthesised and
     placed with the same seeds and target) as they are."""
-    from kfgen.hdl.ukf.descriptor import CORE
-    from kfgen.hdl.ukf.params import UkfParams
-    from kfgen.sim.ukf.app import load_app
-
     sizes = load_app(ON_CHIP_APP).core_parameters()
     rows, configs = [], []
     for p in pes:
@@ -158,9 +160,6 @@ def main(argv=None, ldl: dict | None = None) -> int:
                           "and placed there once).\n" if reused else ""))
             status |= failed(rows)
         if not a.no_montecarlo:  # on the same runner
-            from kfgen.sim.ukf import montecarlo
-            import io
-            from contextlib import redirect_stdout
             buf = io.StringIO()
             with redirect_stdout(buf):
                 status |= montecarlo.main(["--seeds", str(a.mc_seeds)])

@@ -22,8 +22,10 @@ import time
 from pathlib import Path
 
 from kfgen.hdl.arith.float.descriptor import CORE as FPU
-from kfgen.hdl.arith.float.params import FpuParams, check_target, unit_timing
+from kfgen.hdl.arith.float.params import FpuParams, _unit_args, _unit_class, check_target, unit_timing
 from kfgen.hdl.describe import ParamError
+from kfgen.hdl.ukf.descriptor import CORE as UKF
+from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.arith.float.timing import CALIBRATION, MEASURED_MHZ
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner
 
@@ -59,16 +61,12 @@ def fit(points: list[dict]) -> dict:
 
 
 def _model_ns(op: str, stages: int) -> float:
-    from kfgen.hdl.arith.float.params import _unit_args, _unit_class
     return _unit_class(op).stage_delays("binary32", **_unit_args(op, "ieee", None, 1))[stages]
 
 
 def _engine_rows(targets, out: Path) -> tuple[list[dict], dict]:
     """The UKF core at P = 1 for each target: its rows, and the cores to measure, one per
     distinct choice of the units' stages (``key`` of the rows)."""
-    from kfgen.hdl.ukf.descriptor import CORE as UKF
-    from kfgen.hdl.ukf.params import UkfParams
-
     rows, cores = [], {}
     for t in targets:
         params = UkfParams(target_mhz=t, name=f"ukf_p1_t{t:g}")

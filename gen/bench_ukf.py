@@ -39,16 +39,19 @@ import time
 from pathlib import Path
 
 from kfgen.hdl.linalg.engine import OVERHEAD
-from kfgen.hdl.linalg.schedule import Machine, chain_bound
+from kfgen.hdl.linalg.schedule import TRIG_FIELDS, Machine, chain_bound
 from kfgen.hdl.ukf.descriptor import CORE
 from kfgen.hdl.engine.params import GEN_PES_MAX
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
+from kfgen.sim.ukf.app import load_app
 
 from kfgen.sim.cluster import (add_arguments, collect, failed, runner_argv as _runner_argv, shared, task_seconds,
                                timed)
 
+from . import bench_gen, bench_sqrt
+from .bench_sqrt import ON_CHIP_APP
 from .synth import (add_target_arguments, ecp5_fmax, engine_overhead, flow_note, fmt, md_table, resolve_freq,
                     seeds_text, short_path, target_note, target_tag, write_cores, xilinx_task)
 
@@ -318,9 +321,9 @@ def _parser():
     return ap
 
 
-#: The applications of part 5: the chapter's nanosatellite (Table 1 beside it) and the
-#: range-bearing tracker (its h on the atan2 unit).
-ON_CHIP_APP = "nanosat:Nanosat"
+#: The applications of part 5: the chapter's nanosatellite (Table 1 beside it,
+#: :data:`~.bench_sqrt.ON_CHIP_APP`, part 6's too) and the range-bearing tracker (its h on the
+#: atan2 unit).
 TRACKER_APP = "tracker:Tracker"
 
 
@@ -328,8 +331,6 @@ def on_chip_rows(cores: list[tuple[str, int]], out: Path, target_mhz: float | No
                  runner=None) -> list[dict]:
     """Part 5's cores, ``(app, P)`` each (for ``target_mhz``), generated (as ``runner``'s tasks,
     if given): one row each."""
-    from kfgen.hdl.linalg.schedule import TRIG_FIELDS
-    from kfgen.sim.ukf.app import load_app  # (also hands the application loader to hdl)
     sizes = {app: load_app(app).core_parameters() for app, _ in cores}
     configs = [UkfParams(**sizes[app], app=app, on_chip=True, pes=p, target_mhz=target_mhz,
                          name=f"ukf_{'oc' if app == ON_CHIP_APP else 'trk'}_p{p}{target_tag(target_mhz)}")
@@ -480,15 +481,13 @@ def main(argv=None) -> int:
                              for r in chip if r.get("sim_error")))
     gen_ok = True
     if not args.no_gen:
-        from .bench_gen import ROWS, table
-        gen_report, gen_ok = table({"ukf": ROWS["ukf"]})
+        gen_report, gen_ok = bench_gen.table({"ukf": bench_gen.ROWS["ukf"]})
         report += "\n" + gen_report
     print(report, end="")
     (out / "bench_ukf.md").write_text(report)
     if not args.no_sqrt:  # part 6: the square-root form beside the ldl form
-        from .bench_sqrt import main as bench_sqrt
         print("\n### Part 6: the square-root form\n", flush=True)
-        gen_ok &= bench_sqrt([*_runner_argv(args), "-o", str(out / "sqrt"), "--freq", f"{args.freq:g}",
+        gen_ok &= bench_sqrt.main([*_runner_argv(args), "-o", str(out / "sqrt"), "--freq", f"{args.freq:g}",
                               "--seeds", *map(str, args.seeds),
                               *(["--target-mhz", f"{args.target_mhz:g}"] if args.target_mhz else []),
                               *(["--no-synth"] if args.no_synth else []),

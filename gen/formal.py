@@ -36,6 +36,16 @@ from typing import Callable
 
 from amaranth.back import rtlil
 
+from ..hdl.bus import axi4, formal as bus_formal
+from ..hdl.castella import core as castella
+from ..hdl.castella.params import CastellaParams
+from ..hdl.engine import core as engine_core, formal as engine_formal
+from ..hdl.ukf.core import prologue, stream_spec
+from ..hdl.ukf.params import UkfParams
+from ..hdl.ukf.regmap import ukf_map
+from ..hdl.ukf.steps import programs
+from ..sim.ukf import app  # noqa: F401 (the application loader the on-chip parameters use)
+
 __all__ = ["Proof", "Mutant", "Result", "proofs", "mutants", "mutated", "run", "main"]
 
 
@@ -167,26 +177,20 @@ def run(proof: Proof, workdir: Path, mutated: dict | None = None, timeout: float
 
 def _axi4(lat, groups=None, state=False):
     def build(mutated):
-        from ..hdl.bus import axi4, formal
         slave = mutated.get("kfgen.hdl.bus.axi4", axi4).Axi4Slave
-        return formal.SlaveHarness(slave, lat, **({"groups": groups} if groups else {}), state=state)
+        return bus_formal.SlaveHarness(slave, lat, **({"groups": groups} if groups else {}), state=state)
     return build
 
 
 def _ukf_map(groups=None, map_groups=None, state=False):
     """The default UKF core's map (``kfgen ukf``: nanosatellite sizes, binary32, three steps)."""
     def build(mutated):
-        from ..hdl.bus import axi4
-        from ..hdl.engine import core, formal
-        from ..hdl.ukf.params import UkfParams
-        from ..hdl.ukf.regmap import ukf_map
-        from ..hdl.ukf.steps import programs
         params = UkfParams()
         progs = programs(params)
-        return formal.EngineMapHarness(
+        return engine_formal.EngineMapHarness(
             params, ukf_map(params), tuple(progs.steps), progs.layout.size,
             slave_cls=mutated.get("kfgen.hdl.bus.axi4", axi4).Axi4Slave,
-            backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend,
+            backend_cls=mutated.get("kfgen.hdl.engine.core", engine_core).Backend,
             **({"groups": groups} if groups else {}), **({"map_groups": map_groups} if map_groups else {}),
             state=state)
     return build
@@ -195,27 +199,18 @@ def _ukf_map(groups=None, map_groups=None, state=False):
 def _castella(mutated, count=True):
     """Castella with four tracks: measurements of different tracks one a clock, several in
     flight at once."""
-    from ..hdl.bus import formal
-    from ..hdl.castella import core as castella
-    from ..hdl.castella.params import CastellaParams
     core = mutated.get("kfgen.hdl.castella.core", castella).Castella(CastellaParams(tracks=4))
-    return formal.StreamHarness(core, capacity=core.fifo_depth, bound=core.latency + 2, count=count)
+    return bus_formal.StreamHarness(core, capacity=core.fifo_depth, bound=core.latency + 2, count=count)
 
 
 def _ukf_streams(mutated, count=True):
     """An on-chip UKF core with stream ports (the tracker application, binary32: its streams are
     the shortest, so the BMC reaches a whole measurement's way through)."""
-    from ..hdl.engine import core, formal
-    from ..hdl.ukf.core import prologue, stream_spec
-    from ..hdl.ukf.params import UkfParams
-    from ..hdl.ukf.regmap import ukf_map
-    from ..hdl.ukf.steps import programs
-    from ..sim.ukf import app  # noqa: F401 (the application loader the on-chip parameters use)
     params = UkfParams(4, 2, 2, 2, app="tracker:Tracker", on_chip=True, streams=True)
     progs = programs(params)
-    return formal.EngineStreamHarness(
+    return engine_formal.EngineStreamHarness(
         params, ukf_map(params), tuple(progs.steps), progs.layout.size, stream_spec(params, progs),
-        prologue(progs), backend_cls=mutated.get("kfgen.hdl.engine.core", core).Backend, count=count)
+        prologue(progs), backend_cls=mutated.get("kfgen.hdl.engine.core", engine_core).Backend, count=count)
 
 
 #: Every proof, in the order ``make formal`` runs them.

@@ -16,9 +16,15 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
+from amaranth.hdl import Fragment
+
 from kfgen.hdl.describe import CoreDescriptor, ParamError
 
-from .fusesoc import FlowOptions
+from .cores import bind
+from .fusesoc import FlowOptions, constraints, core_file
+from .manifest import dumps, manifest
+from .smoke import testbench
+from .verilog import declared_names, emit, header, waivers
 
 __all__ = ["generate", "write_files", "command", "check_name_fits", "check_output", "port_names",
            "NAME_MAX"]
@@ -86,12 +92,6 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
     that is also the name of one of the core's ports (before the netlist is emitted) or nets
     (after: Verilator calls that VARHIDDEN, and some tools refuse it).
     """
-    from .cores import bind
-    from .fusesoc import constraints, core_file
-    from .manifest import dumps, manifest
-    from .smoke import testbench
-    from .verilog import declared_names, emit, header, waivers
-
     core = bind(core)  # the descriptor as hdl declares it gets its gen and sim hooks
     top = params.name
     check_name_fits(top)
@@ -99,7 +99,6 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
     if top in port_names(component):
         # Elaborated (milliseconds to a second, against the seconds of emission) so that
         # Amaranth does not warn of a component created and never used.
-        from amaranth.hdl import Fragment
         Fragment.get(component, None)
         raise ParamError("name", f"{top!r} is also a port name of the {core.name} core; choose another module name")
     parameters = recorded(params)

@@ -17,8 +17,12 @@ import subprocess
 import time
 from pathlib import Path
 
+from kfgen.hdl.arith.float.params import TARGET_RANGE, check_target
+from kfgen.hdl.linalg.engine import OVERHEAD
+from kfgen.sim.cluster import Runner, timed
 from kfgen.sim.toolchain import nextpnr_ecp5_cmd, yosys_cmd
 
+from .cores import discover
 from .output import generate, write_files
 
 __all__ = ["write_core", "write_cores", "xilinx_resources", "xilinx_task", "ecp5_synth", "ecp5_pnr", "ecp5_summary", "ecp5_fmax", "fmt", "md_table", "flow_note", "seeds_text",
@@ -51,7 +55,6 @@ def write_core(core, params, out: Path) -> tuple[Path, dict]:
 def _write_named(core: str, params, out: Path) -> tuple[Path, dict]:
     """:func:`write_core` of the core named ``core``: what a worker is handed (a name, not the
     descriptor and its functions)."""
-    from .cores import discover
     return write_core(discover()[core], params, out)
 
 
@@ -138,7 +141,6 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3), runner
     returns the future of the summary; without one, the summary.
     """
     if runner is None:  # the same tasks, run here
-        from kfgen.sim.cluster import Runner
         return ecp5_fmax(work, top, freq, seeds, Runner(serial=True)).result()
     synth = runner.submit(ecp5_synth, work, top, name=f"synth_ecp5-{top}", priority=1)
     runs = [runner.submit(ecp5_pnr, work, top, freq, s, synth, name=f"nextpnr-{top}-s{s}") for s in seeds]
@@ -147,7 +149,6 @@ def ecp5_fmax(work: Path, top: str, freq: float = 125.0, seeds=(1, 2, 3), runner
 
 def xilinx_task(runner, work: Path, top: str):
     """:func:`xilinx_resources` as a task (with its ``seconds``)."""
-    from kfgen.sim.cluster import timed
     return runner.submit(timed, xilinx_resources, work, top, name=f"synth_xilinx-{top}", priority=1)
 
 
@@ -182,7 +183,6 @@ def flow_note(freq: float, seeds) -> str:
 
 def _target_mhz(text: str) -> float:
     """``--target-mhz``'s value, by the cores' own rule (:func:`~kfgen.hdl.arith.float.params.check_target`)."""
-    from kfgen.hdl.arith.float.params import TARGET_RANGE, check_target
     try:
         return check_target(float(text))  # a ParamError is a ValueError
     except ValueError:
@@ -226,7 +226,6 @@ def target_note(timing: dict) -> str:
 def engine_overhead(manifest: dict) -> int:
     """The cycles an engine core's step takes beside its schedule (the manifest's ``timing``
     says whether the fetch register adds one): :func:`kfgen.hdl.linalg.engine.overhead`."""
-    from kfgen.hdl.linalg.engine import OVERHEAD
     return OVERHEAD + int(manifest.get("timing", {}).get("fetch_register", False))
 
 

@@ -20,6 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from .toolchain import yosys_cmd
+
 __all__ = ["translate", "main"]
 
 
@@ -128,7 +130,6 @@ def _run(text: str, where: Path, variables: dict, procs: dict) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else list(argv)
-    from .toolchain import yosys_cmd
 
     out, i = [], 0
     while i < len(args):

@@ -24,7 +24,7 @@ from amaranth.hdl import Assert, Assume, Cat, Const, Cover, Elaboratable, Fragme
 from amaranth.lib import data, memory, wiring
 from amaranth.lib.wiring import In
 
-from .axi4 import DATA_WIDTH, FULL_SIZE, Burst, Resp, WordBusSignature
+from .axi4 import DATA_WIDTH, FULL_SIZE, Burst, Resp, WordBusSignature, axi4_slave_members
 
 __all__ = ["Axi4Properties", "StreamProperties", "TransferCount", "SmallMap", "hold_rule",
            "stall_counter", "drive_any", "bounded_run", "SlaveHarness", "StreamHarness", "check_if"]
@@ -468,7 +468,6 @@ class SlaveHarness(Elaboratable):
         self._aw, self._idw = addr_width, id_width
 
     def elaborate(self, platform):
-        from .axi4 import axi4_slave_members
         m = Module()
         dut = self._cls(self._aw, self._idw, self._lat)
         m.submodules.dut = Fragment.get(dut, platform)  # elaborated here: its state is visible

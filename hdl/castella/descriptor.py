@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
+from .core import Castella
 from .params import ALPHA_FRAC, CONST_BITS, Q2_MAX, RANGES, Z_FRAC, Z_MAX, CastellaParams
 
 __all__ = ["CORE"]
@@ -47,17 +48,12 @@ def _docs() -> dict[str, Doc]:
     }
 
 
-def _build(params):
-    from .core import Castella
-    return Castella(params)
-
-
 CORE = CoreDescriptor(
     name="castella",
     summary="adaptive two-state (range, velocity) tracker with manoeuvre detection, many tracks",
     params=CastellaParams,
     docs=_docs,
-    build=_build,
+    build=Castella,
     fields_of=lambda p, port: p.field_list(port) if port in _FIELD_PORTS else None,
     extra=lambda p, c: {"track_interval_cycles": c.track_interval,
                         "sustained_measurements_per_cycle": round(c.sustained_rate, 6),

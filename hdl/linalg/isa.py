@@ -1,15 +1,15 @@
 """The engine's instruction set: one entry per unit, and the checks a result can have.
 
-Pure Python (no Amaranth import at module level). Every layer of the engine reads its unit
-facts here: the IR (an operation's ``unit``), the scheduler (latency and initiation
+Pure Python, importing nothing of kfgen: the bottom of the engine, whose every layer reads
+its unit facts here: the IR (an operation's ``unit``), the scheduler (latency and initiation
 interval, from the :class:`~.schedule.Machine`), the program store and microcode (the unit's
 position in the store, which lanes its instructions carry), the sequencer (the instruction
-word), the engine (which units it builds, and how) and the golden executor
+word), the engine (which units it builds) and the golden executor
 (:data:`kfgen.sim.linalg.exec.GOLDEN`, the operation the unit computes, by the unit's name:
 the golden model lives in ``sim``, which ``hdl`` never imports).
 
 Adding a unit (``sin``, say) is one :class:`Unit` in :data:`UNITS` (its arity, the machine
-field of its latency, the hardware that computes it), one operation class in
+field of its latency), the hardware that computes it in :mod:`.units`, one operation class in
 :mod:`.program` naming it, a latency field in :class:`~.schedule.Machine`, and its golden
 operation in :data:`kfgen.sim.linalg.exec.GOLDEN`.
 """
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import Callable
 
 __all__ = ["Check", "CHECK_BITS", "Unit", "UNITS", "unit"]
 
@@ -52,42 +51,6 @@ class Check(enum.IntEnum):
 CHECK_BITS = max(Check).bit_length()
 
 
-def _div(fmt, stages, cycles_per_op):
-    from ..arith.float.div import FloatDiv
-    return FloatDiv(fmt, stages=stages, cycles_per_op=cycles_per_op)
-
-
-def _sqrt(fmt, stages, cycles_per_op):
-    from ..arith.float.sqrt import FloatSqrt
-    return FloatSqrt(fmt, stages=stages, cycles_per_op=cycles_per_op)
-
-
-def _exp(fmt, stages, cycles_per_op):
-    from ..arith.float.exp import FloatExp
-    return FloatExp(fmt, stages=stages)
-
-
-def _trig(name):
-    def build(fmt, stages, cycles_per_op):
-        from ..arith.float import trig
-        return {"sin": trig.FloatSin, "cos": trig.FloatCos, "atan2": trig.FloatAtan2}[name](fmt, stages=stages)
-    return build
-
-
-def _copy_word(fmt, a):
-    return a, None
-
-
-def _max_word(fmt, a, b):
-    from .units import max_word
-    return max_word(fmt, a, b)
-
-
-def _copysign_word(fmt, a, b):
-    from .units import copysign_word
-    return copysign_word(fmt, a, b), None
-
-
 @dataclass(frozen=True)
 class Unit:
     """One executing unit of the engine.
@@ -108,14 +71,9 @@ class Unit:
         Whether the machine's ``unit_register`` adds to its latency (every unit but the PEs).
     optional : bool
         Built only when a program issues to it (the engine always has the others).
-    hardware : callable or None
-        ``(fmt, stages, cycles_per_op) -> float unit`` (a component with ``i_valid``,
-        ``i_a``[, ``i_b``], ``o_valid``, ``o_y``, ``o_flags``, ``latency``) of an arithmetic
-        shared unit; ``None`` for the PEs (:class:`~.units.ProcessingElement`) and the word
-        functions.
-    word : callable or None
-        ``(fmt, *operand words) -> (result, nan or None)``, the Amaranth expression of a unit
-        without a pipeline (a move, a comparison).
+
+    The hardware that computes a unit is :mod:`.units`' (:data:`~.units.HARDWARE`,
+    :data:`~.units.WORDS`): this table is plain data, which every layer above reads.
     """
 
     name: str
@@ -124,8 +82,6 @@ class Unit:
     interval: str | None = None
     registered: bool = True
     optional: bool = False
-    hardware: Callable | None = None
-    word: Callable | None = None
 
     def pipeline(self, mc) -> int | None:
         """Its pipeline's latency on machine ``mc`` (``None``: it has none)."""
@@ -144,15 +100,15 @@ class Unit:
 #: The units, in the program store's order (an instruction's ``unit`` field is the index).
 UNITS: dict[str, Unit] = {u.name: u for u in (
     Unit("fma", ("a", "b"), "fma_latency", registered=False),
-    Unit("div", ("a", "b"), "div_latency", "div_interval", hardware=_div),
-    Unit("sqrt", ("a",), "sqrt_latency", "sqrt_interval", hardware=_sqrt),
-    Unit("copy", ("a",), None, word=_copy_word),
-    Unit("exp", ("a",), "exp_latency", optional=True, hardware=_exp),
-    Unit("max", ("a", "b"), None, optional=True, word=_max_word),
-    Unit("sin", ("a",), "sin_latency", "sin_interval", optional=True, hardware=_trig("sin")),
-    Unit("cos", ("a",), "cos_latency", "cos_interval", optional=True, hardware=_trig("cos")),
-    Unit("atan2", ("a", "b"), "atan2_latency", "atan2_interval", optional=True, hardware=_trig("atan2")),
-    Unit("copysign", ("a", "b"), None, optional=True, word=_copysign_word),
+    Unit("div", ("a", "b"), "div_latency", "div_interval"),
+    Unit("sqrt", ("a",), "sqrt_latency", "sqrt_interval"),
+    Unit("copy", ("a",), None),
+    Unit("exp", ("a",), "exp_latency", optional=True),
+    Unit("max", ("a", "b"), None, optional=True),
+    Unit("sin", ("a",), "sin_latency", "sin_interval", optional=True),
+    Unit("cos", ("a",), "cos_latency", "cos_interval", optional=True),
+    Unit("atan2", ("a", "b"), "atan2_latency", "atan2_interval", optional=True),
+    Unit("copysign", ("a", "b"), None, optional=True),
 )}
 
 

@@ -13,14 +13,18 @@ from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
+from kfgen.hdl.arith.float.div import FloatDiv
+from kfgen.hdl.arith.float.exp import FloatExp
 from kfgen.hdl.arith.float.fma import FloatFMA
+from kfgen.hdl.arith.float.sqrt import FloatSqrt
+from kfgen.hdl.arith.float.trig import FloatAtan2, FloatCos, FloatSin
 
 from . import isa
 from .banks import ReadLane, WriteLane, addr_layout
 from .isa import CHECK_BITS, Check
 from .microcode import LANE_READ_LATENCY
 
-__all__ = ["ProcessingElement", "SharedUnit", "faults"]
+__all__ = ["ProcessingElement", "SharedUnit", "faults", "HARDWARE", "WORDS"]
 
 
 def faults(fmt, y, check):
@@ -242,6 +246,27 @@ def copysign_word(fmt, a, b):
     return Cat(a[:w - 1], b[w - 1])
 
 
+#: The arithmetic shared units' hardware, by :data:`~.isa.UNITS` name: ``(fmt, stages,
+#: cycles_per_op) -> float unit`` (a component with ``i_valid``, ``i_a``[, ``i_b``],
+#: ``o_valid``, ``o_y``, ``o_flags``, ``latency``).
+HARDWARE = {
+    "div": lambda fmt, stages, cycles_per_op: FloatDiv(fmt, stages=stages, cycles_per_op=cycles_per_op),
+    "sqrt": lambda fmt, stages, cycles_per_op: FloatSqrt(fmt, stages=stages, cycles_per_op=cycles_per_op),
+    "exp": lambda fmt, stages, cycles_per_op: FloatExp(fmt, stages=stages),
+    "sin": lambda fmt, stages, cycles_per_op: FloatSin(fmt, stages=stages),
+    "cos": lambda fmt, stages, cycles_per_op: FloatCos(fmt, stages=stages),
+    "atan2": lambda fmt, stages, cycles_per_op: FloatAtan2(fmt, stages=stages),
+}
+
+#: The shared units without a pipeline (a move, a comparison), by :data:`~.isa.UNITS` name:
+#: ``(fmt, *operand words) -> (result, nan or None)``, an Amaranth expression.
+WORDS = {
+    "copy": lambda fmt, a: (a, None),
+    "max": max_word,
+    "copysign": lambda fmt, a, b: (copysign_word(fmt, a, b), None),
+}
+
+
 class SharedUnit(_Unit):
     """The divider (``a / b``), the square root (``sqrt(a)``), the exponential (``exp(a)``),
     the move unit (``a``) or the comparator (``max(a, b)``): one issue every
@@ -267,7 +292,7 @@ class SharedUnit(_Unit):
     """
 
     def __init__(self, kind, fmt, geometry, layout, stages=None, cycles_per_op=1, register=1):
-        shared = [name for name, u in isa.UNITS.items() if u.hardware or u.word]
+        shared = [name for name in isa.UNITS if name in HARDWARE or name in WORDS]
         if kind not in shared:
             raise ValueError(f"kind must be {', '.join(shared[:-1])} or {shared[-1]}, not {kind!r}")
         self._unit = isa.UNITS[kind]
@@ -301,8 +326,8 @@ class SharedUnit(_Unit):
             m.d.comb += [wb0.mirror.eq(new.mirror), wb0.dst1.eq(new.dst1), wb0.pd1.eq(new.pd1)]
         wb = _delay(m, wb0, LANE_READ_LATENCY, "operands")  # the operands arrive
         operands = [lane.data for lane in self.rd]
-        if self._unit.word is not None:  # a move or a comparison, in the result's register
-            y, nan = self._unit.word(fmt, *operands)
+        if self._kind in WORDS:  # a move or a comparison, in the result's register
+            y, nan = WORDS[self._kind](fmt, *operands)
             if nan is None:
                 wb, (y,) = self._registered(m, wb, [y], "result")
             else:
@@ -310,7 +335,7 @@ class SharedUnit(_Unit):
                 m.d.comb += self.flags.eq(Mux(nv, 0b10000, 0))  # NV, as a comparison
             self._write(m, wb, y)
             return m
-        unit = self._unit.hardware(fmt, self._stages, self._per_op)
+        unit = HARDWARE[self._kind](fmt, self._stages, self._per_op)
         m.submodules.unit = unit
         wb, operands = self._registered(m, wb, operands, "operand")
         m.d.comb += [unit.i_valid.eq(wb.en), unit.i_a.eq(operands[0])]

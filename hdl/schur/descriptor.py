@@ -6,6 +6,7 @@ from __future__ import annotations
 from ..arith.float.format import FLAG_NAMES, FloatFormat
 from ..arith.float.params import CLOCK_MHZ, ranges_text, stages_range
 from ..describe import CoreDescriptor, Doc
+from .core import Schur, matrix_layout, result_layout, status_layout
 from .params import SIZE_MAX, SchurParams
 
 __all__ = ["CORE"]
@@ -58,11 +59,6 @@ def _div_latency_text() -> str:
     return f"{lo}..{hi} pipelined, K+{ilo - k}..K+{ihi - k} iterative"
 
 
-def _build(params):
-    from .core import Schur
-    return Schur(params)
-
-
 def _float_field(fmt: FloatFormat, name: str, lsb: int) -> dict:
     return {"name": name, "lsb": lsb, "width": fmt.width, "signed": True, "format": fmt.name, "unit": "",
             "layout": f"sign[{fmt.width - 1}] exponent[{fmt.width - 2}:{fmt.frac_bits}] "
@@ -71,8 +67,6 @@ def _float_field(fmt: FloatFormat, name: str, lsb: int) -> dict:
 
 def _fields(params: SchurParams, port: str):
     """Packed fields of the data ports, from the payload layouts (:mod:`.core`)."""
-    from .core import matrix_layout, result_layout, status_layout
-
     fmt = params.fmt
     if port in ("s_axis_tdata", "m_axis_tdata"):
         layout = (matrix_layout if port == "s_axis_tdata" else result_layout)(fmt, params.d)
@@ -107,7 +101,7 @@ CORE = CoreDescriptor(
             "streaming",
     params=SchurParams,
     docs=_docs,
-    build=_build,
+    build=Schur,
     fields_of=_fields,
     extra=_extra,
     examples=({},),

@@ -19,6 +19,7 @@ import mpmath
 import numpy as np
 
 from kfgen.hdl.arith.float.format import FLAG_NV, FloatFormat
+from kfgen.hdl.arith.float.trig_plan import _convergent_denominators, _two_over_pi_floor, trig_plan
 
 from .exp_exact import _format, _round_ratio
 from ..float_ref import decode
@@ -133,7 +134,6 @@ def near_pi_half_words(fmt, per_exponent: int = 2) -> list[int]:
     """The floats closest to multiples of ``pi/2``: for every exponent of the reduction's
     range, the significands of the best continued-fraction approximations of ``2**E 2/pi``
     (the inputs whose reduced angle is smallest), and their neighbours."""
-    from kfgen.hdl.arith.float.trig_plan import _convergent_denominators, _two_over_pi_floor, trig_plan
     f = _format(fmt)
     plan = trig_plan(f.fmt)
     p, e_high = f.p, plan.range_bits - f.p

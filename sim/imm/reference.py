@@ -63,6 +63,17 @@ def _matrix(owner: str, name: str, A, shape: tuple[int, int] | None = None,
     return A
 
 
+def _state_size(owner: str, F: np.ndarray, Q: np.ndarray, H: np.ndarray) -> int:
+    """The state size n that F (n x n), Q (n x n) and H (d x n) agree on, two of them at
+    least, so that the error names the one matrix that does not fit."""
+    sizes = [F.shape[0], Q.shape[0], H.shape[1]]
+    agreed = [k for k in sizes if sizes.count(k) >= 2]
+    if not agreed:
+        raise ValueError(f"{owner}: F, Q and H must agree on the state size n (F and Q are n x n, H is d x n), "
+                         f"not F {F.shape}, Q {Q.shape}, H {H.shape}")
+    return agreed[0]
+
+
 def _sym(A: np.ndarray) -> np.ndarray:
     return (A + np.swapaxes(A, -1, -2)) / 2
 
@@ -94,16 +105,18 @@ class ImmModel:
 
     def __post_init__(self):
         owner = f"model {self.name!r}"
-        F = _matrix(owner, "F", self.F)
-        n = F.shape[0]
+        F, Q, H = (_matrix(owner, name, getattr(self, name)) for name in "FQH")
+        for name, A in (("F", F), ("Q", Q)):
+            if A.shape[0] != A.shape[1]:
+                raise ValueError(f"{owner}: {name} must be square, not of shape {A.shape}")
+        n = _state_size(owner, F, Q, H)
         if F.shape != (n, n):
-            raise ValueError(f"{owner}: F must be square, not of shape {F.shape}")
-        H = _matrix(owner, "H", self.H)
+            raise ValueError(f"{owner}: F must be a {n} x {n} matrix, not of shape {F.shape}")
         if H.shape[1] != n:
             raise ValueError(f"{owner}: H must have n = {n} columns, not of shape {H.shape}")
         d = H.shape[0]
         object.__setattr__(self, "F", F)
-        object.__setattr__(self, "Q", _matrix(owner, "Q", self.Q, (n, n), symmetric=True))
+        object.__setattr__(self, "Q", _matrix(owner, "Q", Q, (n, n), symmetric=True))
         object.__setattr__(self, "H", H)
         object.__setattr__(self, "R", _matrix(owner, "R", self.R, (d, d), symmetric=True))
 

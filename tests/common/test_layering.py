@@ -1,6 +1,13 @@
-"""Dependencies point down (ARCHITECTURE.md): ``hdl`` imports neither ``gen`` nor ``sim``,
-not even inside a function, and the engine layer and a core on it never import another
-core's package."""
+"""The layering of kfgen's packages (the folders of docs/development.md, "Layout"), every
+import counted, at module level or inside a function:
+
+- dependencies point down: ``hdl`` imports neither ``gen`` nor ``sim``, ``sim`` does not
+  import ``gen``;
+- no import circle anywhere: what two modules both need lives in a third below them;
+- a core's package (every ``hdl`` package whose ``descriptor.py`` defines ``CORE``) is imported
+  by no other package of ``hdl``, but for the building blocks :data:`BLOCKS` names with the
+  reason: the engine layer (``hdl/engine``, ``hdl/linalg``) takes no core but those blocks,
+  so a new core on it needs only it."""
 
 import ast
 from pathlib import Path
@@ -11,17 +18,37 @@ import kfgen.hdl
 
 HDL = Path(kfgen.hdl.__file__).parent
 
+#: The top-level packages, each a folder beside ``hdl``.
+TOPS = ("hdl", "gen", "sim")
+
+#: The cores that other ``hdl`` packages may build on: imported module (a prefix) -> (the
+#: importers, a prefix; why). Nothing else of a core's package is imported from outside it.
+BLOCKS = {
+    "kfgen.hdl.arith.float": (
+        "kfgen.hdl", "the IEEE-754 units are the arithmetic layer under every floating-point "
+        "block (the engine's units, the Schur unit); the fpu core is one of them alone"),
+    "kfgen.hdl.schur.program": (
+        "kfgen.hdl.imm", "the IMM inverts S by the Schur-complement unit's graph (paper 004), "
+        "scheduled on the engine: the graph is pure Python, none of the Schur core's hardware, "
+        "and one graph makes the two inversions the same"),
+}
+
+
+def _base(path: Path, node: ast.ImportFrom) -> str:
+    """The absolute module name of ``from <module> import ...`` in ``path``."""
+    package = ["kfgen", *path.relative_to(HDL.parent).parent.parts]
+    base = package[:len(package) - node.level + 1] if node.level else []
+    return ".".join(base + ([node.module] if node.module else []))
+
 
 def imports(path: Path) -> list[tuple[int, str]]:
     """(line, absolute module name) of every import statement in ``path``, at any depth."""
-    package = ["kfgen", "hdl", *path.relative_to(HDL).parent.parts]
     out = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             out += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
-            base = package[:len(package) - node.level + 1] if node.level else []
-            name = ".".join(base + ([node.module] if node.module else []))
+            name = _base(path, node)
             out += [(node.lineno, f"{name}.{alias.name}" if not node.module else name) for alias in node.names]
     return out
 
@@ -31,17 +58,123 @@ def offending(path: Path, forbidden: tuple[str, ...]) -> list[str]:
             if any(name == f or name.startswith(f + ".") for f in forbidden)]
 
 
-def test_hdl_imports_neither_gen_nor_sim():
-    bad = [hit for path in sorted(HDL.rglob("*.py")) for hit in offending(path, ("kfgen.gen", "kfgen.sim"))]
-    assert not bad, "hdl imports gen or sim:\n" + "\n".join(bad)
+def _inside(name: str, package: str) -> bool:
+    return name == package or name.startswith(package + ".")
 
 
-@pytest.mark.parametrize("package", ["engine", "linalg", "imm"])
-def test_engine_layer_and_its_cores_import_no_other_core(package):
-    """The engine layer (hdl/engine, hdl/linalg) and a core on it (the IMM) import no core's
-    package but their own: a fifth core needs only the engine layer."""
-    others = tuple(f"kfgen.hdl.{core}" for core in ("ukf", "imm", "castella") if core != package)
-    bad = [hit for path in sorted((HDL / package).rglob("*.py")) for hit in offending(path, others)]
+def modules() -> dict[str, Path]:
+    """Every module of kfgen by its name (a package by its ``__init__.py``)."""
+    out = {}
+    for top in TOPS:
+        for path in sorted((HDL.parent / top).rglob("*.py")):
+            parts = path.relative_to(HDL.parent).with_suffix("").parts
+            out[".".join(["kfgen", *(parts[:-1] if parts[-1] == "__init__" else parts)])] = path
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the kfgen modules it imports anywhere in its code: ``from p import m`` imports
+    ``p`` and, if it is a module, ``p.m``."""
+    mods = modules()
+
+    def module_of(name):  # the module a dotted name lies in ("" if none of kfgen)
+        while name and name not in mods:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph = {}
+    for name, path in mods.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                targets |= {module_of(alias.name) for alias in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = _base(path, node)
+                targets |= {module_of(base), *(module_of(f"{base}.{alias.name}") for alias in node.names)}
+        graph[name] = targets - {"", name}
+    return graph
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm), each
+    sorted: the import circles."""
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(out)
+
+
+def core_packages() -> list[str]:
+    """Every core's package: each ``hdl`` package whose ``descriptor.py`` assigns ``CORE``."""
+    found = []
+    for path in sorted(HDL.rglob("descriptor.py")):
+        body = ast.parse(path.read_text(), str(path)).body
+        if any(isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "CORE" for t in node.targets)
+               for node in body):
+            found.append(".".join(["kfgen", *path.relative_to(HDL.parent).parent.parts]))
+    return found
+
+
+@pytest.mark.parametrize("package, below", [("hdl", ("gen", "sim")), ("sim", ("gen",))])
+def test_dependencies_point_down(package, below):
+    """``hdl`` imports neither ``gen`` nor ``sim``; ``sim`` does not import ``gen``."""
+    forbidden = tuple(f"kfgen.{top}" for top in below)
+    bad = [hit for path in sorted((HDL.parent / package).rglob("*.py")) for hit in offending(path, forbidden)]
+    assert not bad, f"{package} imports {' or '.join(below)}:\n" + "\n".join(bad)
+
+
+def test_no_import_circle():
+    """No module of kfgen imports itself around a loop of imports, within a package or across
+    them (a function-level import counts: it hides a circle, it does not break it)."""
+    found = circles(import_graph())
+    assert not found, "import circles:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_the_circle_finder():
+    """A loop of three is one circle; a module that only reaches it, or a chain, is none."""
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert circles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_core_imports_another_core():
+    """No ``hdl`` module imports a core's package but its own core's, except a building block
+    of :data:`BLOCKS` for the importers it names. Every core package is scanned, as found."""
+    cores = core_packages()
+    assert {"kfgen.hdl.ukf", "kfgen.hdl.imm", "kfgen.hdl.castella", "kfgen.hdl.schur",
+            "kfgen.hdl.arith.float"} <= set(cores), cores
+    bad = []
+    for name, targets in sorted(import_graph().items()):
+        if not _inside(name, "kfgen.hdl"):
+            continue
+        for target in sorted(targets):
+            core = next((c for c in cores if _inside(target, c)), None)
+            if core is None or _inside(name, core):
+                continue
+            if not any(_inside(target, block) and _inside(name, importer) for block, (importer, _) in BLOCKS.items()):
+                bad.append(f"{name} imports {target} (core {core})")
     assert not bad, "\n".join(bad)
 
 

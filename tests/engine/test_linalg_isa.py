@@ -7,17 +7,20 @@ from kfgen.hdl.linalg import isa
 from kfgen.hdl.linalg.isa import Check
 from kfgen.hdl.linalg.program import UNITS, Copy, Div, Dot, Exp, Max, Sqrt
 from kfgen.hdl.linalg.schedule import Machine
+from kfgen.hdl.linalg.units import HARDWARE, WORDS
 from kfgen.sim.linalg.exec import GOLDEN
 
 
 def test_every_unit_is_complete():
     """A unit has a golden operation (all but the FMA, whose accumulation the executor runs),
-    and exactly one way to be built; the IR's unit names are the table's."""
+    and exactly one way to be built, a pipeline or a word (the FMA is the PEs'); the IR's unit
+    names are the table's."""
     assert UNITS == tuple(isa.UNITS) and UNITS[0] == "fma"
     assert set(GOLDEN) == set(UNITS) - {"fma"}
+    assert set(HARDWARE) | set(WORDS) <= set(UNITS)
     for name, u in isa.UNITS.items():
         assert u.name == name
-        assert (u.hardware is None) + (u.word is None) == (2 if name == "fma" else 1), name
+        assert (name in HARDWARE) + (name in WORDS) == (0 if name == "fma" else 1), name
         assert u.latency is None or u.latency in Machine.__dataclass_fields__
         assert u.interval is None or u.interval in Machine.__dataclass_fields__
 

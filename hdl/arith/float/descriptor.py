@@ -4,13 +4,12 @@ and ``make bench`` see it."""
 from __future__ import annotations
 
 from ...describe import CoreDescriptor, Doc
-from .params import CLOCK_MHZ, OPS, FpuParams, ranges_text
+from .params import CLOCK_MHZ, OPS, FpuParams, ranges_text, stages_range
 
 __all__ = ["CORE"]
 
 
 def _trig_latency(op: str, fmt: str = "binary32") -> int:
-    from .params import stages_range
     return stages_range(op, fmt)[0]
 
 

@@ -8,8 +8,8 @@ from amaranth.hdl import C, Cat, Mux
 from amaranth.lib.wiring import In, Out
 
 from .format import FloatFormat
-from .timing import carry_delay, dsp_delay, lut_delay, product_sum_delay, round_delays, shifter_delay, tree_levels
-from .mul import ROW_GROUP, partial_products, sum_in_two, sum_partial_products
+from .timing import carry_delay, dsp_delay, lut_delay, round_delays, shifter_delay, tree_levels
+from .mul import ROW_GROUP, partial_products, product_sum_delay, sum_in_two, sum_partial_products
 from .round import (ROUND_BOUNDARIES, ROUND_COUNT, ROUND_HALF, ROUND_UP, FloatUnit, leading_zeros, prepare_exponent,
                     round_pack, unpack)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 from amaranth.hdl import C, Cat, Mux, Signal, Value
@@ -9,12 +10,12 @@ from amaranth.lib.wiring import In, Out
 
 from ..multiply import sum_rows
 from .format import FloatFormat
-from .timing import (carry_delay, dsp_delay, lut_delay, prepare_delay, product_sum_delay, round_delays,
-                     shifter_delay, tree_levels)
+from .timing import (carry_delay, dsp_delay, lut_delay, prepare_delay, round_delays, shifter_delay,
+                     tree_levels)
 from .round import (ROUND_BOUNDARIES, FloatUnit, leading_zeros, prepare_exponent, round_pack,
                     unpack)
 
-__all__ = ["FloatMul", "product_rows", "partial_products", "sum_partial_products"]
+__all__ = ["FloatMul", "product_rows", "partial_products", "sum_partial_products", "product_sum_delay"]
 
 _R = ROUND_BOUNDARIES  # round.shift, round.round, round.select
 
@@ -84,6 +85,25 @@ def partial_products(a, b, rows=None) -> dict:
             # (as wide as the product it is, not as the adders' carries)
             terms.append((sum_rows(group)[:len(group[0]) + len(group)], span[g]))
     return {f"pp{k}_{weight}": value for k, (value, weight) in enumerate(terms)}
+
+
+def product_sum_delay(precision: int) -> float:
+    """The delay (:mod:`.timing`'s model) of the sum of a ``precision`` x ``precision``
+    product's partial products (blocks and LUT rows, :func:`partial_products`): lanes of terms
+    that do not overlap, added pairwise in a balanced tree of carry chains as wide as the
+    product. Here, beside the products it measures, so that the delay model imports no unit."""
+    terms = sorted((int(name.rpartition("_")[2]), len(Value.cast(value)))
+                   for name, value in partial_products(Signal(precision), Signal(precision)).items()
+                   if name.startswith("pp"))
+    lanes: list[int] = []  # each lane's end
+    for at, width in terms:
+        free = next((i for i, end in enumerate(lanes) if end <= at), None)
+        if free is None:
+            lanes.append(at + width)
+        else:
+            lanes[free] = at + width
+    levels = math.ceil(math.log2(len(lanes))) if len(lanes) > 1 else 0
+    return levels * carry_delay(2 * precision)
 
 
 def _add_above(lo, hi, shift: int):

@@ -13,8 +13,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ...describe import ParamError, check_name
+from .add import FloatAdd, FloatSub
+from .div import FloatDiv
+from .exp import FloatExp
+from .f2i import FloatToInt
+from .fma import FloatFMA
 from .format import FLAG_NAMES, FloatFormat
+from .i2f import IntToFloat
+from .mul import FloatMul
+from .sqrt import FloatSqrt
 from .timing import CLOCK_MHZ, MEASURED_MHZ, TARGET_RANGE, predicted_mhz, stages_for_target
+from .trig import FloatAtan2, FloatCos, FloatSin
 
 __all__ = ["FpuParams", "OPS", "CLOCK_MHZ", "cycles_per_op_range", "stages_range",
            "ranges_text", "check_target", "unit_timing", "core_timing", "OMIT_NONE"]
@@ -83,15 +92,6 @@ OPS = {
 
 
 def _unit_class(op: str):
-    from .add import FloatAdd, FloatSub
-    from .div import FloatDiv
-    from .exp import FloatExp
-    from .f2i import FloatToInt
-    from .fma import FloatFMA
-    from .i2f import IntToFloat
-    from .mul import FloatMul
-    from .sqrt import FloatSqrt
-    from .trig import FloatAtan2, FloatCos, FloatSin
     return {"add": FloatAdd, "sub": FloatSub, "mul": FloatMul, "div": FloatDiv, "sqrt": FloatSqrt,
             "fma": FloatFMA, "i2f": IntToFloat, "f2i": FloatToInt, "exp": FloatExp,
             "sin": FloatSin, "cos": FloatCos, "atan2": FloatAtan2}[op]

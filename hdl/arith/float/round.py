@@ -17,6 +17,7 @@ from amaranth.hdl import C, Cat, Const, Module, Mux, Shape, Signal, Value, signe
 from amaranth.lib import data, wiring
 
 from .format import FloatFormat
+from .timing import longest_stage
 
 __all__ = ["SUBNORMAL_MODES", "ROUND_BOUNDARIES", "as_format", "ROUND_COUNT", "ROUND_UP", "ROUND_HALF", "FloatUnit", "UnitPlan", "Cuts", "unpack",
            "leading_zeros", "prepare_exponent", "round_pack", "check_unit_params"]
@@ -135,7 +136,6 @@ class FloatUnit(wiring.Component):
         """Stage count -> the longest stage's delay (ns) by the delay model, for every count
         the unit the same arguments would construct can place (``stages`` is ignored); or
         ``None`` for a unit without a model."""
-        from .timing import longest_stage
         probe = cls._probe(*args, **kwargs)
         plans = probe.PLANS
         if hasattr(plans, "longest"):

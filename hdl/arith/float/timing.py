@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from .format import FloatFormat
 
 __all__ = ["CLOCK_MHZ", "LUT_NS", "BUDGET_NS", "lut_delay", "carry_delay", "tree_levels", "shifter_delay",
-           "dsp_delay", "block_ram_delay", "prepare_delay", "round_delays", "StagePlans", "product_sum_delay",
+           "dsp_delay", "block_ram_delay", "prepare_delay", "round_delays", "StagePlans",
            "longest_stage", "CALIBRATION", "MEASURED_MHZ", "TARGET_RANGE", "predicted_mhz", "stages_for_target"]
 
 #: The clock the default stage counts are designed for: an ECP5-85, binary32. The units placed
@@ -218,27 +218,6 @@ class StagePlans(Mapping):
         index = {name: j for j, name in enumerate(self._names)}
         bound = max([budget] + [self._cost(index[n] - 1, index[n]) for n in self._forced])
         return len(self._latest(bound)) + self._offset
-
-
-def product_sum_delay(precision: int) -> float:
-    """The sum of a ``precision`` x ``precision`` product's partial products (blocks and LUT
-    rows, :func:`~.mul.partial_products`): lanes of terms that do not overlap, added pairwise
-    in a balanced tree of carry chains as wide as the product."""
-    from amaranth.hdl import Signal, Value
-
-    from .mul import partial_products
-    terms = sorted((int(name.rpartition("_")[2]), len(Value.cast(value)))
-                   for name, value in partial_products(Signal(precision), Signal(precision)).items()
-                   if name.startswith("pp"))
-    lanes: list[int] = []  # each lane's end
-    for at, width in terms:
-        free = next((i for i, end in enumerate(lanes) if end <= at), None)
-        if free is None:
-            lanes.append(at + width)
-        else:
-            lanes[free] = at + width
-    levels = math.ceil(math.log2(len(lanes))) if len(lanes) > 1 else 0
-    return levels * carry_delay(2 * precision)
 
 
 def longest_stage(segments, boundaries) -> float:

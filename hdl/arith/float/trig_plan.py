@@ -27,9 +27,11 @@ continued fractions) in binary32 and binary64.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from math import isqrt
 from fractions import Fraction
 from functools import lru_cache
 
+from .exact import format_consts, round_magnitude
 from .exp_plan import _nearest
 from .format import FloatFormat
 
@@ -79,7 +81,6 @@ def constant_word(fmt, multiple: tuple[int, int], sign: int = 0) -> int:
     """``multiple[0] pi / 2**multiple[1]`` rounded to nearest in ``fmt`` with ``sign`` (the
     results of atan2's special operands): pi's bits from :func:`pi_floor`, and its infinite
     tail as a sticky bit."""
-    from .exact import format_consts, round_magnitude
     k = format_consts(fmt)
     n = k.p + 8
     return round_magnitude(k, sign, pi_floor(n) * multiple[0], -n - multiple[1], True, False)[0]
@@ -129,7 +130,6 @@ def _two_over_pi_floor(n: int) -> int:
 
 def _isqrt_ratio(num: int, den: int, bits: int) -> int:
     """``floor(sqrt(num/den) * 2**bits)``."""
-    from math import isqrt
     return isqrt((num << (2 * bits)) // den)
 
 
