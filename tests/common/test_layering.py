@@ -99,3 +99,15 @@ def test_no_core_simulates_or_tests_with_another_cores_package():
                 bad += [f"{path.relative_to(root.parents[1])}:{line}: {name}"
                         for line, name in _module_imports(path, pkg) if owner(name) not in (None, core)]
     assert not bad, "a core's sim or tests import another core's:\n" + "\n".join(bad)
+
+
+def test_sim_imports_no_gen():
+    """Dependencies point gen -> sim -> hdl: sim imports no gen module, not even inside a
+    function (a command that generates and then simulates is gen's, :mod:`kfgen.gen.cosim`)."""
+    import kfgen.sim
+
+    sim = Path(kfgen.sim.__file__).parent
+    bad = [f"{path.relative_to(sim.parent)}:{line}: {name}" for path in sorted(sim.rglob("*.py"))
+           for line, name in _module_imports(path, ["kfgen", "sim", *path.relative_to(sim).parent.parts])
+           if name == "kfgen.gen" or name.startswith("kfgen.gen.")]
+    assert not bad, "sim imports gen:\n" + "\n".join(bad)
