@@ -252,7 +252,7 @@ def main(argv=None):
         try:
             top, _ = generated_top(args.rtl)
         except ValueError as exc:
-            ap.error(str(exc))
+            ap.exit(2, f"{ap.prog}: error: {exc}\n")  # one line, without the usage
         with open_runner(args) as runner:
             trace = runner.submit(run_scenario, Path(args.rtl).resolve(), top, args.steps, seed=args.seed,
                                   name="imm-scenario").result()

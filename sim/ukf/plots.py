@@ -26,7 +26,7 @@ from .accuracy import run_golden, run_reference
 from .apps.nanosat import STEPS, Nanosat, NanosatPrinted, attitude_error_deg
 from .run import run_cosim
 
-__all__ = ["SEED", "REFERENCE", "GOLDEN", "RTL", "figure12", "nanosat_runs", "generate_command", "rtl_run", "main"]
+__all__ = ["SEED", "REFERENCE", "GOLDEN", "RTL", "figure12", "nanosat_runs", "generate_command", "rtl_top", "rtl_run", "main"]
 
 SEED = 1
 REFERENCE = "float64 reference"
@@ -109,10 +109,8 @@ def generate_command(on_chip: bool = False, form: str = "ldl") -> str:
             + (" --form sqrt" if form == "sqrt" else "") + " -o DIR")
 
 
-def rtl_run(rtl: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = False, form: str = "ldl") -> np.ndarray:
-    """The nanosatellite on the core generated into ``rtl`` (:func:`generate_command`) in a
-    Verilator co-simulation (:mod:`kfgen.sim.ukf.cosim`, every word checked against the golden
-    model); the estimates, (K, 7). About 0.3 s an iteration (0.05 s on chip: one transaction).
+def rtl_top(rtl: Path, on_chip: bool = False, form: str = "ldl") -> str:
+    """The top of the core generated into ``rtl`` by :func:`generate_command`.
 
     Raises
     ------
@@ -123,6 +121,16 @@ def rtl_run(rtl: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = Fal
     got = manifest["parameters"]
     if (got.get("on_chip"), got.get("form"), got.get("states"), got.get("observations")) != (on_chip, form, app.n, app.m):
         raise ValueError(f"{rtl} holds {top}, not the core of `{generate_command(on_chip, form)}`")
+    return top
+
+
+def rtl_run(rtl: Path, steps: int = STEPS, seed: int = SEED, on_chip: bool = False, form: str = "ldl") -> np.ndarray:
+    """The nanosatellite on the core generated into ``rtl`` (:func:`generate_command`,
+    :func:`rtl_top`) in a Verilator co-simulation (:mod:`kfgen.sim.ukf.cosim`, every word
+    checked against the golden model); the estimates, (K, 7). About 0.3 s an iteration
+    (0.05 s on chip: one transaction)."""
+    app, _ = _nanosat(form)
+    top = rtl_top(rtl, on_chip, form)
     # an iteration is about 5,000 cycles: a long run gets the optimised C++
     model = build_core(rtl, top, Path(rtl) / "verilator", cycles=steps * 5000)
     npz = Path(rtl) / "cosim.npz"
@@ -164,15 +172,17 @@ def main(argv=None):
                     help="the core's covariance form; sqrt draws the chapter's printed P0 = I (on which the ldl "
                          "form faults) and writes figure12_sqrt*.png")
     args = ap.parse_args(argv)
+    if args.rtl:  # before the runs: a directory without the core is refused at once
+        try:
+            rtl_top(Path(args.rtl), args.on_chip, args.form)
+        except ValueError as exc:
+            ap.exit(2, f"{ap.prog}: error: {exc}\n")  # one line, without the usage
     runs = nanosat_runs(args.steps, args.seed, args.on_chip, args.form)
     if args.rtl:
         import time
         t0 = time.monotonic()
-        try:
-            trace = rtl_run(Path(args.rtl), args.steps, args.seed, args.on_chip, args.form)
-        except ValueError as exc:
-            ap.error(str(exc))
-        runs["estimates"][RTL_ON_CHIP if args.on_chip else RTL] = trace
+        runs["estimates"][RTL_ON_CHIP if args.on_chip else RTL] = rtl_run(Path(args.rtl), args.steps, args.seed,
+                                                                           args.on_chip, args.form)
         print(f"co-simulation of {args.steps} iterations: {time.monotonic() - t0:.0f} s (build included)")
     t, truth = runs["t"], runs["truth"]
     traces = {name: attitude_error_deg(x[:, :4], truth[:, :4]) for name, x in runs["estimates"].items()}
