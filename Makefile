@@ -80,9 +80,13 @@ bench-fpu: $(DEV)
 plots: $(DEV)
 	$(PY) -m kfgen.sim.castella.mc build/mc
 	$(PY) -m kfgen.sim.castella.plots -o sim/castella/figures --verilator build/mc/verilator_mc.npz
+	$(VENV)/bin/kfgen ukf --app nanosat:Nanosat --name ukf_nanosat -o build/ukf_cosim
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --rtl build/ukf_cosim
+	$(VENV)/bin/kfgen ukf --app nanosat:Nanosat --on-chip --name ukf_nanosat_oc -o build/ukf_cosim_on_chip
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --on-chip --rtl build/ukf_cosim_on_chip
+	$(VENV)/bin/kfgen ukf --app nanosat:NanosatPrinted --on-chip --form sqrt --name ukf_nanosat_sqrt -o build/ukf_cosim_sqrt
 	$(PY) -m kfgen.sim.ukf.plots -o sim/ukf/figures --form sqrt --on-chip --rtl build/ukf_cosim_sqrt
+	$(VENV)/bin/kfgen imm --pes 4 --name imm_scenario_p4 -o build/imm_scenario
 	$(PY) -m kfgen.sim.imm.plots -o sim/imm/figures --rtl build/imm_scenario
 
 clean:

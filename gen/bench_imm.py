@@ -50,15 +50,15 @@ PES = (1, 2, 4)
 
 def _measure(work: Path, top: str, cache: Path) -> dict:
     """One iteration of the testbench in Verilator: the cycles it measured."""
-    from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+    from kfgen.sim.engine.run import build_core, run_tb
+    from kfgen.sim.imm.run import TB
 
     t0 = time.monotonic()
-    model = build_ukf_core(work, top, cache)
+    model = build_core(work, top, cache)
     out = {"build_seconds": time.monotonic() - t0}
     t1 = time.monotonic()
     try:
-        run_ukf(model, work, top, ["iterations"], "iterations", env={"KFGEN_TB_ITERATIONS": "1"},
-                module="kfgen.sim.imm.tb")
+        run_tb(model, work, top, TB, ["iterations"], "iterations", env={"KFGEN_TB_ITERATIONS": "1"})
     except (AssertionError, RuntimeError) as exc:
         out["sim_error"] = str(exc).splitlines()[0]
     out["run_seconds"] = time.monotonic() - t1

@@ -97,14 +97,15 @@ def measured_cycles(log: str) -> dict[str, int]:
 
 def _simulate(work: Path, top: str, cache: Path) -> dict:
     """Build and run one iteration of the testbench; the measured cycles, and the seconds."""
-    from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+    from kfgen.sim.engine.run import build_core, run_tb
+    from kfgen.sim.ukf.run import TB
 
     t0 = time.monotonic()
-    model = build_ukf_core(work, top, cache)
+    model = build_core(work, top, cache)
     t1 = time.monotonic()
     out = {"build_seconds": t1 - t0}
     try:
-        run_ukf(model, work, top, ["iterations"], "iterations", env={"KFGEN_TB_ITERATIONS": "1"})
+        run_tb(model, work, top, TB, ["iterations"], "iterations", env={"KFGEN_TB_ITERATIONS": "1"})
     except (AssertionError, RuntimeError) as exc:  # a failed test; a simulator that died
         out["sim_error"] = str(exc).splitlines()[0]
     out["run_seconds"] = time.monotonic() - t1
@@ -127,9 +128,10 @@ def _system(work: Path, top: str, cache: Path, beats: str) -> dict:
     iteration per part, and the simulation's speed."""
     import numpy as np
 
-    from kfgen.sim.ukf.run import build_ukf_core, run_cosim
+    from kfgen.sim.engine.run import build_core
+    from kfgen.sim.ukf.run import run_cosim
 
-    model = build_ukf_core(work, top, cache)
+    model = build_core(work, top, cache)
     npz = work / f"system_{beats}.npz"
     t0 = time.monotonic()
     try:
@@ -367,8 +369,9 @@ def part5_ldl(chip: list[dict], no_fmax: bool) -> dict:
 
 def _simulate_on_chip(work: Path, top: str, cache: Path) -> dict:
     """One iteration of the on-chip testbench, which asserts the manifest's cycles."""
-    from kfgen.sim.ukf.run import build_ukf_core, run_ukf
-    run_ukf(build_ukf_core(work, top, cache), work, top, ["on_chip_iterations"], "on_chip",
+    from kfgen.sim.engine.run import build_core, run_tb
+    from kfgen.sim.ukf.run import TB
+    run_tb(build_core(work, top, cache), work, top, TB, ["on_chip_iterations"], "on_chip",
             env={"KFGEN_TB_ITERATIONS": "1"})
     return {}
 

@@ -100,16 +100,16 @@ def simulate_fpu_cores(build_root, name, units, model):
         assert [int(v) for v in results[prefix]["flags"]] == flags, prefix
 
 
-#: Fault campaign sequences of the engine cores (:mod:`kfgen.sim.campaign`): make test runs
+#: Fault campaign sequences of the engine cores (:mod:`kfgen.sim.engine.campaign`): make test runs
 #: the first, make test-full the second (pytest parameters of ``sequences``).
 ENGINE_CAMPAIGN = (20, 10_000)
 
 
-def run_fault_campaign(model, rtl, top, sequences, module="kfgen.sim.ukf.tb"):
-    """The testbench's ``fault_campaign`` on an engine core's build: seeded random bus traffic,
+def run_fault_campaign(model, rtl, top, module, sequences):
+    """The ``fault_campaign`` of testbench ``module`` on an engine core's build: seeded random bus traffic,
     starts, soft and bus resets, each sequence followed by a clean iteration against the golden
     model (calm: no per-clock monitor, the campaign checks every response itself)."""
-    from kfgen.sim.ukf.run import run_ukf
+    from kfgen.sim.engine.run import run_tb
 
-    run_ukf(model, rtl, top, ["fault_campaign"], f"campaign_{sequences}", module=module,
-            env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})
+    run_tb(model, rtl, top, module, ["fault_campaign"], f"campaign_{sequences}",
+           env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})

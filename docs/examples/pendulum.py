@@ -9,7 +9,7 @@ Size a core for it, and co-simulate it on that core (generate, Verilator build, 
 word checked against the golden model)::
 
     kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum
-    python -m kfgen.sim.ukf.run --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim
+    python -m kfgen.gen.cosim ukf --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim
 """
 
 import numpy as np

@@ -23,9 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .reference import run_reference, run_single
 from kfgen.sim.cluster import add_arguments, open_runner
+from kfgen.sim.engine.run import generated_top
 
+from .reference import run_reference, run_single
+from .run import run_scenario
 from .scenario import CONDITIONS, RAIN, SEED, STEPS, Scenario, identification, satlink
 
 __all__ = ["REFERENCE", "COLORS", "figure_probabilities", "figure_snr", "figures", "main"]
@@ -240,15 +242,19 @@ def main(argv=None):
     ap.add_argument("--traces", metavar="FILE.npz",
                     help="more traces: arrays NAME:mu (steps, 5) and NAME:x (steps, 6) per trace")
     ap.add_argument("--rtl", metavar="DIR",
-                    help="also run the scenario through the generated IMM core in Verilator (P = 4, "
-                         "every word checked against the golden model), working in DIR, and draw its trace")
+                    help="also run the scenario through the IMM core generated into DIR in Verilator (the "
+                         "default sizes: `kfgen imm --pes 4 -o DIR`; every word checked against the golden "
+                         "model) and draw its trace")
     add_arguments(ap)
     args = ap.parse_args(argv)
     extra = _load_traces(args.traces) if args.traces else {}
     if args.rtl:  # the RTL run as a task (kfgen.sim.cluster), as the benches' simulations
-        from kfgen.sim.imm.run import run_scenario
+        try:
+            top, _ = generated_top(args.rtl)
+        except ValueError as exc:
+            ap.exit(2, f"{ap.prog}: error: {exc}\n")  # one line, without the usage
         with open_runner(args) as runner:
-            trace = runner.submit(run_scenario, args.rtl, args.steps, pes=4, seed=args.seed,
+            trace = runner.submit(run_scenario, Path(args.rtl).resolve(), top, args.steps, seed=args.seed,
                                   name="imm-scenario").result()
         extra[RTL] = (trace["mu"], trace["x"])
     for path in figures(args.outdir, args.steps, args.seed, extra or None):

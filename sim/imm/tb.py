@@ -1,6 +1,6 @@
-"""cocotb testbench of a generated IMM core, driven as software would drive it through
-cocotbext-axi's ``AxiMaster`` (the UKF testbench's :class:`~kfgen.sim.ukf.tb.TB`: bursts
-for the buffer, single beats for the registers, random idle cycles and backpressure on every
+"""cocotb testbench of a generated IMM core, driven as software would drive it through the
+engine's harness (:class:`kfgen.sim.engine.tb.TB`: cocotbext-axi's ``AxiMaster``, bursts for
+the buffer, single beats for the registers, random idle cycles and backpressure on every
 channel, AXI handshake checkers).
 
 Every word read back is compared with the bit-exact golden model
@@ -23,7 +23,9 @@ from cocotbext.axi import AxiResp
 
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
-from kfgen.sim.ukf.tb import TB, holes, setup, wait_idle, watchdog_fires
+from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
+from kfgen.sim.linalg.exec import run
 
 #: The regions software writes before the first iteration, in buffer order.
 INPUTS = ("pi", "mu", "F", "Q", "H", "R", "x_model", "P_model")
@@ -116,10 +118,7 @@ async def clean_iteration(tb):
 @cocotb.test()
 async def fault_campaign(dut):
     """Seeded random sequences of bus traffic, starts, soft and bus resets, each followed by a
-    clean iteration (:mod:`kfgen.sim.campaign`)."""
-    from kfgen.sim.campaign import engine_campaign
-    from kfgen.sim.ukf.tb import CLOCK_NS
-
+    clean iteration (:mod:`kfgen.sim.engine.campaign`)."""
     tb = await setup(dut, ImmTB)
     counts = await engine_campaign(tb, clean_iteration, CLOCK_NS)
     dut._log.info("fault campaign: %s", counts)
@@ -149,8 +148,7 @@ async def errors(dut):
     assert dut.irq.value == 1  # err_busy
     for name in ("F", "H", "z"):
         await tb.check(name)
-    from kfgen.sim.linalg.exec import run
-    run(tb.ukf.steps["iterate"], tb.gold)
+    run(tb.programs.steps["iterate"], tb.gold)
     await wait_idle(tb, "iterate")
     status = await tb.read_reg("STATUS")
     assert status == tb.bits("STATUS", done=1, err_busy=1), hex(status)
@@ -212,4 +210,4 @@ async def scenario(dut):
             dut._log.info("step %d: mu %s", k, np.round(mu[-1], 4))
     if os.environ.get("KFGEN_IMM_OUT"):
         np.savez(os.environ["KFGEN_IMM_OUT"], mu=np.array(mu), x=np.array(x), xs=np.array(xs), P=np.array(P),
-                 seed=sc.seed, cycles=int((get_sim_time("ns") - t0) // 10))
+                 seed=sc.seed, cycles=int((get_sim_time("ns") - t0) // CLOCK_NS))

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["AppError", "Scenario", "UkfApplication", "load_app", "checked_scenario"]
+__all__ = ["AppError", "Scenario", "UkfApplication", "load_app", "portable_spec", "checked_scenario", "check_models"]
 
 
 class AppError(ValueError):
@@ -247,13 +247,26 @@ def _one_line(text) -> str:
 SHIPPED = "kfgen.sim.ukf.apps"
 
 
+def _find_file(module: str) -> Path:
+    """The file ``module`` names: a path from the current directory (or absolute); a bare file
+    name (``ctrv.py``, as generated files record it, :func:`portable_spec`) is also looked
+    for in the directories of ``sys.path``, where a runner puts the application's directory."""
+    path = Path(module)
+    if path.is_file():
+        return path
+    if path.name == module:
+        found = next((Path(d or ".") / module for d in sys.path if (Path(d or ".") / module).is_file()), None)
+        if found is not None:
+            return found
+    raise AppError(f"no such file {module!r}")
+
+
 def _import(module: str):
-    """Import ``module`` (a dotted name, found from the current directory too, or a .py file;
-    failing that, a shipped application's module of that name, :data:`SHIPPED`)."""
+    """Import ``module`` (a dotted name, found from the current directory too, or a .py file,
+    :func:`_find_file`; failing that, a shipped application's module of that name,
+    :data:`SHIPPED`)."""
     if module.endswith(".py"):
-        path = Path(module)
-        if not path.is_file():
-            raise AppError(f"no such file {module!r}")
+        path = _find_file(module)
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(mod)
@@ -314,6 +327,85 @@ def load_app(spec: str) -> UkfApplication:
         raise AppError(f"{spec}() is a {type(app).__name__}, not a UkfApplication (kfgen.sim.ukf.app)")
     app.check()
     return app
+
+
+def portable_spec(spec: str) -> tuple[str, Path | None]:
+    """``spec`` as the generated files record it, and the directory it is found from.
+
+    A file's spec (``myapps/ctrv.py:Ctrv``, relative to the current directory, or absolute)
+    is recorded by the file's name, ``ctrv.py:Ctrv``, and comes with the file's directory
+    (absolute): the manifest and its "regenerate it with" command then do not depend on the
+    directory a command ran in nor on how the path was spelt (one file, one recording), and the
+    command regenerates the core when run from the application's directory. A module's spec
+    (``nanosat:Nanosat``) is returned as it is, with None.
+
+    Raises
+    ------
+    AppError
+        When the file does not exist.
+    """
+    module, _, cls = spec.rpartition(":")
+    if not module.endswith(".py"):
+        return spec, None
+    path = Path(module)
+    if not path.is_file():
+        raise AppError(f"no such file {module!r}")
+    return f"{path.name}:{cls}", path.resolve().parent
+
+
+def _where(fn, tb=None) -> str:
+    """``file:line`` of ``fn``'s definition, or of the last line of ``tb`` in ``fn``'s file
+    (the file from the current directory when it lies under it)."""
+    code = getattr(fn, "__code__", None)
+    if code is None:
+        return "?"
+    line = code.co_firstlineno
+    while tb is not None:
+        if tb.tb_frame.f_code.co_filename == code.co_filename:
+            line = tb.tb_lineno
+        tb = tb.tb_next
+    path = Path(code.co_filename)
+    if path.is_relative_to(Path.cwd()):
+        path = path.relative_to(Path.cwd())
+    return f"{path}:{line}"
+
+
+def _probe(app: UkfApplication, name: str, args: tuple, size: str, what: str) -> None:
+    fn = getattr(app, name)
+    length = getattr(app, size)
+    label = f"{type(app).__name__}.{name}"
+    try:
+        out = fn(*args)
+    except Exception as exc:  # the user's function: whatever it raises, one line
+        raise AppError(f"{label} ({_where(fn, exc.__traceback__)}) raised {type(exc).__name__}: "
+                       f"{_one_line(exc)} (called on {what})") from None
+    try:
+        a = None if out is None else np.asarray(out, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.size != length:
+        got = "None" if out is None else "something that is not numbers" if a is None else f"shape {a.shape}"
+        raise AppError(f"{label} ({_where(fn)}) returned {got}, not {size} = {length} values (called on {what})")
+    if not np.all(np.isfinite(a)):
+        raise AppError(f"{label} ({_where(fn)}) returned {np.ravel(a).tolist()}: not finite (called on {what})")
+
+
+def check_models(app: UkfApplication) -> None:
+    """Call the application's f and h once on x0 (zero noise, a zero control input) and once
+    on a sigma point, x0 plus the first column of chol(P0): a function that raises or returns
+    the wrong number of values is found before a core is generated and built.
+
+    Raises
+    ------
+    AppError
+        One line naming the function, its ``file:line`` (where it raised, else where it is
+        defined) and what was wrong.
+    """
+    x0 = np.asarray(app.x0, dtype=np.float64)
+    point = x0 + np.linalg.cholesky(np.asarray(app.P0, dtype=np.float64))[:, 0]
+    for x, what in ((x0, "x0"), (point, "x0 + chol(P0)[:, 0]")):
+        _probe(app, "f", (x, np.zeros(app.nw), np.zeros(app.nu), app.dt), "n", what)
+        _probe(app, "h", (x, np.zeros(app.nv)), "m", what)
 
 
 def _register() -> None:

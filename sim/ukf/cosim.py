@@ -16,11 +16,12 @@ golden model behind the same address map: writes land in its memory, a write of
 ``CTRL.start`` runs the step's program) and asserts that every word read from the buffer,
 and every step's ``STATUS``, equals the model's. Nothing awaits every clock: the test waits
 on ``irq`` (or polls ``STATUS``) and on the master's transfers, each wait for a step bounded
-by :func:`kfgen.sim.watchdog.bound` of its manifest cycles.
+by :func:`kfgen.sim.engine.watchdog.bound` of its manifest cycles.
 
 Environment: ``KFGEN_TB_MANIFEST`` (the core's ``TOP.json``), ``KFGEN_APP`` (``module:Class``),
-``KFGEN_APP_DIR`` (a directory to import it from: the runner's current directory; a
-``file.py:Class`` spec must be absolute, the simulation runs elsewhere), ``KFGEN_STEPS``
+``KFGEN_APP_DIR`` (the directory it is found from, put on ``sys.path``: there a module, and
+the file name an on-chip core's manifest records, are found; a ``file.py:Class`` spec in
+``KFGEN_APP`` must be absolute, the simulation runs elsewhere), ``KFGEN_STEPS``
 (iterations), ``KFGEN_SEED``, ``KFGEN_BEATS`` (``burst`` or ``single``: every
 transfer one beat at a time, as the chapter's processor), ``KFGEN_WAIT`` (``irq`` or ``poll``),
 ``KFGEN_DRIVER_LIB`` (the C driver's shared library, for ``c_processor``), ``KFGEN_COSIM_OUT``
@@ -48,13 +49,13 @@ from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
 from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
+from kfgen.sim.engine.prologue import Prologue
+from kfgen.sim.engine.tb import CLOCK_NS
+from kfgen.sim.engine.watchdog import Expired, Watchdog, wait_irq
 from kfgen.sim.linalg.exec import Status, from_words
-from kfgen.sim.watchdog import Expired, Watchdog, wait_irq
 
 from .app import checked_scenario, load_app
-from .software import Prologue, StepError, initial_words, iteration
-
-CLOCK_NS = 10
+from .software import StepError, initial_words, iteration
 
 
 def steps_of(manifest) -> list[str]:
@@ -213,7 +214,7 @@ class CheckedBus:
             self.running = None
 
     async def wait_event(self):
-        """Until ``irq`` is high (``wait = irq``), or one poll interval; :class:`kfgen.sim.watchdog.Expired`
+        """Until ``irq`` is high (``wait = irq``), or one poll interval; :class:`kfgen.sim.engine.watchdog.Expired`
         once the running step (the longest, with none started) is past its bound."""
         cycles = self.manifest["cycles"]
         step, start = self.running or (max(cycles, key=cycles.get), self.now())

@@ -26,11 +26,12 @@ import numpy as np
 
 from kfgen.hdl.ukf.params import covariance_region
 from kfgen.hdl.ukf.steps import programs
-from kfgen.sim.linalg.exec import Status, from_words, run, to_words
+from kfgen.sim.engine.prologue import Prologue
+from kfgen.sim.linalg.exec import Status, from_words, to_words
 
 from .app import UkfApplication
 
-__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "Prologue", "GoldenCore", "complete"]
+__all__ = ["CoreIO", "StepError", "initial_words", "iteration", "GoldenCore", "complete"]
 
 
 class CoreIO(Protocol):
@@ -113,51 +114,6 @@ async def iteration(io: CoreIO, app: UkfApplication, fmt, u, z, on_chip: bool = 
     await io.write("sigma_points_h", to_words(fmt, np.ravel([app.h(xf, c[n + nw:]) for xf, c in zip(moved, chi)])))
     await io.write("z", to_words(fmt, np.ravel(np.asarray(z, dtype=np.float64))))
     await _step(io, "update")
-
-
-class Prologue:
-    """The core's prologue (:attr:`~kfgen.hdl.ukf.programs.UkfPrograms.prologue`) on the
-    golden side: a start of ``iteration`` on an on-chip core (``sig_gen`` on a three-step
-    core of the square-root form) runs ``noise`` first when Q or R have been written since
-    ``noise`` last ran (and after reset), as the hardware does
-    (:class:`kfgen.hdl.engine.core.Prologue`)."""
-
-    def __init__(self, ukf):
-        self.ukf = ukf
-        self.spec = getattr(ukf, "prologue", None)  # (the IMM's programs have none)
-        self.stale = True
-        regions = [ukf.layout[r] for r in self.spec[2]] if self.spec is not None else []
-        self._words = [(reg.base, reg.base + reg.size) for reg in regions]
-
-    def wrote(self, name: str) -> None:
-        """Region ``name`` was written."""
-        if self.spec is not None and name in self.spec[2]:
-            self.stale = True
-
-    def wrote_word(self, address: int) -> None:
-        """The word at ``address`` (the layout's) was written."""
-        if any(lo <= address < hi for lo, hi in self._words):
-            self.stale = True
-
-    def steps(self, name: str) -> list[str]:
-        """The programs a start of ``name`` runs now, in order (and the state that follows)."""
-        if self.spec is None:
-            return [name]
-        pre, main, _ = self.spec
-        out = [pre, main] if name == main and self.stale else [name]
-        if pre in out:
-            self.stale = False
-        return out
-
-    def run(self, name: str, mem: list[int], steps: list[str] | None = None) -> Status:
-        """Start ``name`` on ``mem`` (the programs ``steps`` if given, else :meth:`steps`'):
-        their statuses together."""
-        pivot = nan = False
-        flags = 0
-        for step in steps or self.steps(name):
-            st = run(self.ukf.steps[step], mem)
-            pivot, nan, flags = pivot or st.pivot, nan or st.nan, flags | st.flags
-        return Status(pivot, nan, flags)
 
 
 class GoldenCore:

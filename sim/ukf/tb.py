@@ -1,6 +1,7 @@
-"""cocotb testbench of a generated UKF core, driven as software would drive it, through
-cocotbext-axi's ``AxiMaster``: bursts for the buffer's matrices, single beats for the
-registers, random idle cycles and backpressure on every channel.
+"""cocotb testbench of a generated UKF core, driven as software would drive it through the
+engine's harness (:class:`kfgen.sim.engine.tb.TB`: cocotbext-axi's ``AxiMaster``, bursts for
+the buffer's matrices, single beats for the registers, random idle cycles and backpressure on
+every channel).
 
 Every word read back is compared with the bit-exact golden model
 (:func:`kfgen.sim.linalg.exec.run` on the same step programs), every step's cycles with the
@@ -9,32 +10,23 @@ reference (:class:`kfgen.sim.ukf.reference.AugmentedUKF`).
 
 Environment: ``KFGEN_TB_MANIFEST``, the core's ``TOP.json``; ``KFGEN_TB_SEED`` (default 1);
 ``KFGEN_TB_ITERATIONS`` (default 5).
-
-No wait is unbounded: waits on ``irq`` and polls of ``STATUS`` give up after
-:func:`kfgen.sim.watchdog.bound` of the step's manifest cycles, naming the step.
 """
 
 from __future__ import annotations
 
-import json
-import logging
 import os
 
 import cocotb
 import numpy as np
-from cocotb.clock import Clock
-from cocotb.simtime import get_sim_time
-from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
-from cocotbext.axi import AxiBus, AxiMaster, AxiResp
+from cocotb.triggers import ClockCycles, FallingEdge, RisingEdge
+from cocotbext.axi import AxiResp
 
 from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
+from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
 from kfgen.sim.linalg.exec import from_words, to_words
-from kfgen.sim.ukf.software import Prologue
 from kfgen.sim.streams import StreamChecker
-from kfgen.sim.watchdog import Expired, Watchdog, bound, poll, wait_irq
-
-CLOCK_NS = 10
 
 X0 = [0.5, -1.25]
 P0 = [[0.4, 0.1], [0.1, 0.3]]
@@ -59,177 +51,9 @@ def h(x, v):
     return np.array([np.sqrt(x[i % len(x)] ** 2 + 1.0 + i) for i in range(m)]) + v
 
 
-class TB:
-    """Drives an engine core (the UKF's; :class:`kfgen.sim.imm.tb.ImmTB` the IMM's) through
-    AXI4 and keeps its golden memory. ``PARAMS`` and ``PROGRAMS`` make the core's parameters
-    and step programs from the manifest."""
-
+class UkfTB(TB):
     PARAMS = UkfParams
     PROGRAMS = staticmethod(programs)
-
-    def __init__(self, dut):
-        self.dut = dut
-        self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
-        self.params = self.PARAMS(**self.manifest["parameters"])
-        self.ukf = self.PROGRAMS(self.params)
-        self.fmt, self.layout = self.ukf.fmt, self.ukf.layout
-        self.gold = self.layout.initial_memory()
-        self.prologue = Prologue(self.ukf)  # noise before an on-chip iteration after Q, R writes
-        self.regs = {r["name"]: r for r in self.manifest["registers"]}
-        self.has_step = any(fd["name"] == "step" for fd in self.regs["CTRL"]["fields"])  # the IMM's has none
-        self.mems = {mm["name"]: mm for mm in self.manifest["memories"]}
-        self.words = self.mems["x"]["words_per_element"]
-        self.rng = np.random.default_rng(int(os.environ.get("KFGEN_TB_SEED", "1")))
-        self.cycle = 0
-        self.w_beats, self.irq_rises = [], []
-        cocotb.start_soon(Clock(dut.clk, CLOCK_NS, unit="ns").start())
-        self.axi = AxiMaster(AxiBus.from_prefix(dut, "s_axi"), dut.clk, dut.rst)
-        logging.getLogger(f"cocotb.{dut._name}.s_axi").setLevel(logging.WARNING)
-        # KFGEN_TB_CALM=1 (long runs): no per-clock monitor (no handshake checkers, no cycle
-        # measurement) and no random pauses, so that the simulation wakes Python only for the
-        # bus's own transfers
-        self.calm = bool(int(os.environ.get("KFGEN_TB_CALM", "0")))
-        if self.calm:
-            return
-        self.checkers = [
-            StreamChecker("R", dut.s_axi_rvalid, dut.s_axi_rready,
-                          {k: getattr(dut, f"s_axi_{k}") for k in ("rid", "rdata", "rresp", "rlast")}),
-            StreamChecker("B", dut.s_axi_bvalid, dut.s_axi_bready,
-                          {k: getattr(dut, f"s_axi_{k}") for k in ("bid", "bresp")}),
-        ]
-        for ch in (self.axi.write_if.aw_channel, self.axi.write_if.w_channel, self.axi.read_if.ar_channel,
-                   self.axi.write_if.b_channel, self.axi.read_if.r_channel):
-            ch.set_pause_generator(self._pauses())
-
-    def _pauses(self):
-        rng = np.random.default_rng(self.rng.integers(1 << 32))
-        while True:
-            yield bool(rng.random() < 0.3)
-
-    async def reset(self):
-        self.dut.rst.value = 1
-        await ClockCycles(self.dut.clk, 3)
-        self.dut.rst.value = 0
-        await RisingEdge(self.dut.clk)
-        if not self.calm:
-            cocotb.start_soon(self._monitor())
-
-    async def _monitor(self):
-        """Once a clock, before the rising edge: handshake rules, W beats and irq rises."""
-        dut, irq = self.dut, 0
-        while True:
-            await FallingEdge(dut.clk)
-            await ReadOnly()
-            self.cycle += 1
-            for c in self.checkers:
-                c.sample(self.cycle)
-            if dut.s_axi_wvalid.value == 1 and dut.s_axi_wready.value == 1:
-                self.w_beats.append(self.cycle)
-            now = int(dut.irq.value)
-            if now and not irq:
-                self.irq_rises.append(self.cycle)
-            irq = now
-
-    @staticmethod
-    def now():
-        """The clock cycles simulated so far (also in calm runs, which count none)."""
-        return int(get_sim_time("ns")) // CLOCK_NS
-
-    # ------------------------------------------------------------- registers
-    def field(self, reg, name):
-        return next(f for f in self.regs[reg]["fields"] if f["name"] == name)
-
-    def bits(self, reg, **values):
-        word = 0
-        for name, v in values.items():
-            fd = self.field(reg, name)
-            word |= (fd["values"][v] if isinstance(v, str) else int(v)) << fd["lsb"]
-        return word
-
-    async def read_reg(self, reg, word=0):
-        got = await self.axi.read(self.regs[reg]["offset"] + 4 * word, 4)
-        assert got.resp == AxiResp.OKAY, (reg, got.resp)
-        return int.from_bytes(got.data, "little")
-
-    async def write_reg(self, reg, value):
-        return (await self.axi.write(self.regs[reg]["offset"], value.to_bytes(4, "little"))).resp
-
-    # ------------------------------------------------------------- buffer
-    def _bytes(self, words):
-        return b"".join(w.to_bytes(4 * self.words, "little") for w in words)
-
-    def _words(self, data):
-        step = 4 * self.words
-        return [int.from_bytes(data[i:i + step], "little") for i in range(0, len(data), step)]
-
-    async def put(self, name, values, expect=AxiResp.OKAY):
-        """Write region ``name`` in one burst (the golden memory too, if it is accepted)."""
-        mem, reg = self.mems[name], self.layout[name]
-        words = to_words(self.fmt, np.ravel(values))
-        assert len(words) == reg.size
-        resp = (await self.axi.write(mem["offset"], self._bytes(words))).resp
-        assert resp == expect, (name, resp)
-        if resp == AxiResp.OKAY:
-            self.gold[reg.base:reg.base + reg.size] = words
-            self.prologue.wrote(name)
-        return words
-
-    async def get_words(self, name, expect=AxiResp.OKAY):
-        mem, reg = self.mems[name], self.layout[name]
-        got = await self.axi.read(mem["offset"], reg.size * 4 * self.words)
-        assert got.resp == expect, (name, got.resp)
-        return self._words(got.data)
-
-    async def check(self, name):
-        """Read region ``name`` by burst: every word equals the golden model's; its values."""
-        reg = self.layout[name]
-        got = await self.get_words(name)
-        want = self.gold[reg.base:reg.base + reg.size]
-        bad = [(i, hex(g), hex(w)) for i, (g, w) in enumerate(zip(got, want)) if g != w]
-        assert not bad, (name, bad[:8])
-        return np.array(from_words(self.fmt, got)).reshape(reg.rows, reg.cols)
-
-    # ------------------------------------------------------------- steps
-    async def start(self, step):
-        resp = await self.write_reg("CTRL", self.bits("CTRL", start=1, **({"step": step} if self.has_step else {})))
-        return resp
-
-    async def step(self, name):
-        """Run ``name`` in hardware (start, wait for irq) and in the golden model; check the
-        status, the cycles against the manifest, and clear the status."""
-        steps = self.prologue.steps(name)  # (an on-chip iteration may run noise first)
-        st = self.prologue.run(name, self.gold, steps)
-        cycles = sum(self.manifest["cycles"][s] for s in steps)
-        beats = len(self.w_beats)
-        rises = len(self.irq_rises)
-        assert await self.start(name) == AxiResp.OKAY
-        dog = Watchdog(name, cycles, self.now())
-        if self.calm:  # no cycle count (None): wait for irq, then check the status as below
-            await wait_irq(self.dut, dog, self.now)
-            measured = None
-        else:
-            if len(self.irq_rises) == rises:
-                await wait_irq(self.dut, dog, self.now)
-                await RisingEdge(self.dut.clk)  # the monitor has recorded the rise
-            # the beat is sampled before the edge that takes it (edge 1); STATUS.done reads 1
-            # after edge `cycles`, irq rises at edge `cycles + 1` and is sampled before the next
-            measured = self.irq_rises[rises] - self.w_beats[beats] - 1
-            assert measured == cycles, (steps, measured, cycles)
-        status = await self.read_reg("STATUS")
-        want = self.bits("STATUS", done=1, err_pivot=st.pivot, err_nan=st.nan)
-        assert status == want, (name, hex(status), hex(want))
-        assert await self.write_reg("STATUS", status) == AxiResp.OKAY  # w1c
-        assert await self.read_reg("STATUS") == 0
-        return st, measured
-
-
-async def setup(dut, cls=TB):
-    tb = cls(dut)
-    await tb.reset()
-    enable = tb.bits("IRQ_ENABLE", done=1, err_pivot=1, err_nan=1, err_busy=1)
-    assert await tb.write_reg("IRQ_ENABLE", enable) == AxiResp.OKAY
-    assert await tb.read_reg("IRQ_ENABLE") == enable
-    return tb
 
 
 def noise(tb):
@@ -297,10 +121,8 @@ async def clean_iteration(tb):
 @cocotb.test()
 async def fault_campaign(dut):
     """Seeded random sequences of bus traffic, starts, soft and bus resets, each followed by a
-    clean iteration (:mod:`kfgen.sim.campaign`)."""
-    from kfgen.sim.campaign import engine_campaign
-
-    tb = await setup(dut)
+    clean iteration (:mod:`kfgen.sim.engine.campaign`)."""
+    tb = await setup(dut, UkfTB)
     counts = await engine_campaign(tb, clean_iteration, CLOCK_NS)
     dut._log.info("fault campaign: %s", counts)
 
@@ -309,7 +131,7 @@ async def fault_campaign(dut):
 async def iterations(dut):
     """ID, then several UKF iterations (sig_gen, f, predict, h, update) with every word
     checked, the cycles measured, and the result against the float64 reference."""
-    tb = await setup(dut)
+    tb = await setup(dut, UkfTB)
     p = tb.params
     n, m = p.n, p.m
     ident = await tb.read_reg("ID") | await tb.read_reg("ID", 1) << 32
@@ -343,7 +165,7 @@ async def on_chip_iterations(dut):
     from kfgen.sim.ukf.app import checked_scenario, load_app
     from kfgen.sim.ukf.software import initial_words
 
-    tb = await setup(dut)
+    tb = await setup(dut, UkfTB)
     p = tb.params
     app = load_app(p.app)
     for name, words in initial_words(app, tb.fmt, p.form).items():
@@ -381,13 +203,12 @@ async def stream_iterations(dut):
     AxiStreamSource), the estimates taken from ``m_axis`` (AxiStreamSink, with backpressure);
     every field word for word against the golden model, ``tuser`` against its status, the
     latency from the transfer to the result against the manifest."""
-    from cocotb.triggers import FallingEdge as Fall
     from cocotbext.axi import AxiStreamBus, AxiStreamFrame, AxiStreamSink, AxiStreamSource
 
     from kfgen.sim.ukf.app import checked_scenario, load_app
     from kfgen.sim.ukf.software import initial_words
 
-    tb = await setup(dut)
+    tb = await setup(dut, UkfTB)
     p, fmt = tb.params, tb.fmt
     spec = tb.manifest["streams"]
     app = load_app(p.app)
@@ -415,7 +236,7 @@ async def stream_iterations(dut):
         ran = tb.prologue.steps("iteration")  # noise first after the loads of Q and R
         st = tb.prologue.run("iteration", tb.gold, ran)
         await source.send(AxiStreamFrame(pack(spec["s_axis"]["fields"], words)))
-        await Fall(dut.s_axis_tready)
+        await FallingEdge(dut.s_axis_tready)
         taken = tb.now()
         await RisingEdge(dut.m_axis_tvalid)
         latency = tb.now() - taken + 1
@@ -449,49 +270,12 @@ def AugmentedUKF_ref(p, x0, P0, Q, R):
     return (SquareRootUKF if p.form == "sqrt" else AugmentedUKF)(p.n, p.nw, p.nv, p.m, f, h, p.w0, x0, P0, Q, R)
 
 
-async def holes(tb):
-    """Between the registers and the buffer, and past the buffer's end: SLVERR, reads 0; a
-    write of the read-only ID: SLVERR."""
-    axi = tb.axi
-    last = max(mm["offset"] + mm["shape"][0] * mm["shape"][1] * 4 * tb.words for mm in tb.mems.values())
-    for addr in (0x18, tb.manifest["bus"]["size"] // 2 - 4, last):
-        got = await axi.read(addr, 4)
-        assert (got.resp, got.data) == (AxiResp.SLVERR, bytes(4)), hex(addr)
-        assert (await axi.write(addr, b"\xff" * 4)).resp == AxiResp.SLVERR, hex(addr)
-    assert (await axi.write(tb.regs["ID"]["offset"], bytes(4))).resp == AxiResp.SLVERR
-
-
-async def wait_idle(tb, step):
-    """Poll STATUS until ``step`` (running) is no longer busy, within the watchdog's bound."""
-    busy = tb.field("STATUS", "busy")["lsb"]
-
-    async def pause():
-        pass  # a read takes cycles of its own
-
-    await poll(lambda: tb.read_reg("STATUS"), lambda word: not word >> busy & 1, pause, tb.now, step,
-               tb.manifest["cycles"][step])
-
-
-async def watchdog_fires(tb, step):
-    """With the core idle and no start, a wait for ``step``'s irq fails within the bound,
-    naming the step: no wait of these testbenches can hang."""
-    assert not tb.dut.irq.value
-    limit = bound(tb.manifest["cycles"][step])
-    try:
-        await wait_irq(tb.dut, Watchdog(step, tb.manifest["cycles"][step], tb.now()), tb.now)
-    except Expired as exc:
-        assert f"step {step} " in str(exc) and f"bound {limit} " in str(exc), str(exc)
-        assert limit < exc.waited <= limit + 2, (exc.waited, limit)
-    else:
-        raise AssertionError(f"the watchdog let a wait for {step} end without irq")
-
-
 @cocotb.test()
 async def errors(dut):
     """Holes, read-only blocks, writes while busy, start while busy, reads while busy, soft
     reset mid-step, a P that is not positive definite; a wait with no start ends at the
     watchdog's bound."""
-    tb = await setup(dut)
+    tb = await setup(dut, UkfTB)
     p = tb.params
     axi = tb.axi
     await holes(tb)

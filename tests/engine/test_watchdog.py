@@ -1,5 +1,5 @@
 """The watchdog that bounds every wait of the engine cores' testbenches and co-simulation
-(:mod:`kfgen.sim.watchdog`), on a fake core without a simulator: a poll that never sees done
+(:mod:`kfgen.sim.engine.watchdog`), on a fake core without a simulator: a poll that never sees done
 fails at the bound, naming the step; one that does returns the word. The wait on ``irq``
 under cocotb is exercised by the testbenches' ``errors`` cases (a wait with no start)."""
 
@@ -7,7 +7,7 @@ import asyncio
 
 import pytest
 
-from kfgen.sim.watchdog import MARGIN, SLACK, Expired, Watchdog, bound, poll
+from kfgen.sim.engine.watchdog import MARGIN, SLACK, Expired, Watchdog, bound, poll
 
 
 class FakeCore:

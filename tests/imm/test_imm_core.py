@@ -12,11 +12,11 @@ from kfgen.hdl.imm.steps import schedules
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.toolchain import lint
-from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.imm.run import TB
 
 from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
 
-TB = "kfgen.sim.imm.tb"
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]
 
 
@@ -71,7 +71,7 @@ def test_bad_values_exit_2(tmp_path, args, says):
 
 @pytest.fixture(scope="module")
 def sim(rtl):
-    return build_ukf_core(rtl, "imm_small", VERILATOR_CACHE)
+    return build_core(rtl, "imm_small", VERILATOR_CACHE)
 
 
 @pytest.mark.verilator
@@ -79,7 +79,7 @@ def sim(rtl):
 @pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (R = 3, n = 2, d = 2, P = 2, binary32)."""
-    run_ukf(sim, rtl, "imm_small", tests, tests[0], module=TB)
+    run_tb(sim, rtl, "imm_small", TB, tests, tests[0])
 
 
 #: More configurations, one Verilator build each, in ``make test-full`` (the default core's
@@ -105,8 +105,8 @@ def test_cocotb_configurations(request, build_root, args):
     kfgen("imm", *args, "--name", top, "-o", out)
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    model = build_ukf_core(out, top, VERILATOR_CACHE)
-    run_ukf(model, out, top, ["iterations", "errors"], "all", module=TB)
+    model = build_core(out, top, VERILATOR_CACHE)
+    run_tb(model, out, top, TB, ["iterations", "errors"], "all")
 
 
 
@@ -114,4 +114,4 @@ def test_cocotb_configurations(request, build_root, args):
 @pytest.mark.xdist_group("imm_core")
 @pytest.mark.parametrize("sequences", [ENGINE_CAMPAIGN[0], pytest.param(ENGINE_CAMPAIGN[1], marks=pytest.mark.full)])
 def test_fault_campaign(rtl, sim, sequences):
-    run_fault_campaign(sim, rtl, "imm_small", sequences, module=TB)
+    run_fault_campaign(sim, rtl, "imm_small", TB, sequences)

@@ -58,9 +58,9 @@ def test_rtl_drift_over_thousands_of_steps(build_root, scenario, reference):
     """3000 steps of the scenario through the RTL core (P = 4), every word checked against the
     golden model by the testbench; then its drift from float64, written to
     ``imm_drift.json`` in the build directory."""
-    from kfgen.sim.imm.run import run_scenario
+    from kfgen.gen.cosim import imm_scenario
 
-    trace = run_scenario(build_root / "imm_drift", 3000, pes=4, cache_dir=VERILATOR_CACHE)
+    trace = imm_scenario(build_root / "imm_drift", 3000, pes=4, cache_dir=VERILATOR_CACHE)
     d = drift(trace, reference, scenario.condition)
     (build_root / "imm_drift.json").write_text(json.dumps(d, indent=2) + "\n")
     print("IMM RTL (binary32) against float64 over the scenario:", json.dumps(d))

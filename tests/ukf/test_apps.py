@@ -465,3 +465,22 @@ def test_figure12_with_an_extra_trace(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     out = capsys.readouterr().out
     assert "float64 reference" in out and "binary32 golden model" in out
+
+
+def test_figure12_rtl_needs_the_generated_core(tmp_path, capsys):
+    """``--rtl DIR`` co-simulates the core generated into DIR: a directory without it, or with
+    another core, is refused in one line before any run."""
+    from kfgen.sim.ukf.plots import main
+
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "ukf.v").write_text("")
+    (other / "ukf.json").write_text(json.dumps({"parameters": {"states": 2, "observations": 1, "form": "ldl",
+                                                              "on_chip": False}}))
+    for rtl, says in ((tmp_path, "holds no generated cores"),
+                      (other, "holds ukf, not the core of `kfgen ukf --app nanosat:Nanosat -o DIR`")):
+        with pytest.raises(SystemExit) as info:
+            main(["-o", str(tmp_path / "fig"), "--steps", "20", "--rtl", str(rtl)])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "fig").exists()

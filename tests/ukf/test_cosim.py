@@ -6,10 +6,11 @@ the same estimates, and the chapter's accuracy claim holds on the co-simulated c
 import numpy as np
 import pytest
 
+from kfgen.sim.engine.run import build_core
 from kfgen.sim.ukf.accuracy import run_reference
 from kfgen.sim.ukf.app import load_app
 from kfgen.sim.ukf.apps.nanosat import attitude_error_deg
-from kfgen.sim.ukf.run import build_driver, build_ukf_core, run_cosim
+from kfgen.sim.ukf.run import build_driver, run_cosim
 
 from helpers import ROOT, VERILATOR_CACHE, kfgen
 
@@ -34,7 +35,7 @@ def nanosat_core(build_root):
     top = "ukf_m20_p1"
     out = build_root / top
     kfgen("ukf", "--name", top, "-o", out)
-    return out, top, build_ukf_core(out, top, VERILATOR_CACHE)
+    return out, top, build_core(out, top, VERILATOR_CACHE)
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +107,7 @@ def test_tracker(build_root, processor, beats, wait):
     out = build_root / top
     if not (out / f"{top}.json").exists():
         kfgen("ukf", "--app", TRACKER, "--format", "binary64", "--pes", "2", "--name", top, "-o", out)
-    model = build_ukf_core(out, top, VERILATOR_CACHE)
+    model = build_core(out, top, VERILATOR_CACHE)
     npz = out / f"{processor}.npz"
     lib = build_driver(out, top) if processor == "c_processor" else None
     steps = 6
@@ -139,7 +140,7 @@ def test_c_driver_builds(tmp_path, fmt, form):
         assert proc.returncode == 0, proc.stderr
 
 
-# ---------------------------------------------------------------- python -m kfgen.sim.ukf.run
+# ---------------------------------------------------------------- python -m kfgen.gen.cosim ukf
 
 #: The README's application (its Pendulum), without a scenario.
 NO_SCENARIO = '''
@@ -185,14 +186,14 @@ class ShortZ(example.Pendulum):
 
 
 def cosim_main(*args):
-    """``python -m kfgen.sim.ukf.run ARGS`` in this process: (exit status, stdout, stderr)."""
+    """``python -m kfgen.gen.cosim ukf ARGS`` in this process: (exit status, stdout, stderr)."""
     import contextlib
     import io
 
-    from kfgen.sim.ukf.run import main
+    from kfgen.gen.cosim import main
 
     with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(io.StringIO()) as err:
-        code = main([str(a) for a in args])
+        code = main(["ukf", *(str(a) for a in args)])
     return code, out.getvalue(), err.getvalue()
 
 
@@ -208,13 +209,12 @@ def cosim_main(*args):
 ])
 def test_run_rejects_before_building(tmp_path, monkeypatch, args, says):
     """What cannot run is refused in one line, exit 2, before anything is generated or built."""
-    import kfgen.gen.synth
-    import kfgen.sim.ukf.run as run
+    import kfgen.gen.cosim as cosim
 
     def never(*_a, **_k):
         raise AssertionError("generated or built")
-    monkeypatch.setattr(kfgen.gen.synth, "write_core", never)
-    monkeypatch.setattr(run, "build_ukf_core", never)
+    monkeypatch.setattr(cosim, "write_core", never)
+    monkeypatch.setattr(cosim, "build_core", never)
     (tmp_path / "readme.py").write_text(NO_SCENARIO)
     (tmp_path / "glitch.py").write_text(GLITCH)
     code, out, err = cosim_main(*(a.replace("{tmp}", str(tmp_path)) for a in args), "-o", tmp_path / "work")
@@ -231,10 +231,10 @@ def test_run_usage_errors_are_one_line(tmp_path, args, says):
     import contextlib
     import io
 
-    from kfgen.sim.ukf.run import main
+    from kfgen.gen.cosim import main
 
     with contextlib.redirect_stderr(io.StringIO()) as err, pytest.raises(SystemExit) as info:
-        main([*args, "-o", str(tmp_path / "work")])
+        main(["ukf", *args, "-o", str(tmp_path / "work")])
     assert info.value.code == 2 and err.getvalue().startswith(f"cosim: error: {says}"), err.getvalue()
     assert err.getvalue().count("\n") == 1 and not (tmp_path / "work").exists()
 
@@ -243,10 +243,10 @@ def test_run_help_gives_defaults_and_exit_codes():
     import contextlib
     import io
 
-    from kfgen.sim.ukf.run import main
+    from kfgen.gen.cosim import main
 
     with contextlib.redirect_stdout(io.StringIO()) as out, pytest.raises(SystemExit) as info:
-        main(["--help"])
+        main(["ukf", "--help"])
     text = " ".join(out.getvalue().split())
     assert info.value.code == 0
     for says in ("--seed SEED the scenario's seed (default 1)", "AXI bursts or single beats (default burst)",
@@ -258,15 +258,14 @@ def test_run_help_gives_defaults_and_exit_codes():
 def test_run_fault_is_one_line_exit_3(tmp_path, monkeypatch):
     """A StepError out of the co-simulation: one line naming the iteration, the step and the
     bit, exit 3 (the runner's part; the run's part is test_pendulum_fault)."""
-    import kfgen.gen.synth
-    import kfgen.sim.ukf.run as run
+    import kfgen.gen.cosim as cosim
     from kfgen.sim.ukf.software import StepError
 
     def fault(*_a, **_k):
         raise StepError("sig_gen", "err_pivot", 7)
-    monkeypatch.setattr(kfgen.gen.synth, "write_core", lambda core, params, out: (tmp_path, None))
-    monkeypatch.setattr(run, "build_ukf_core", lambda *a, **k: None)
-    monkeypatch.setattr(run, "run_cosim", fault)
+    monkeypatch.setattr(cosim, "write_core", lambda core, params, out: (tmp_path, None))
+    monkeypatch.setattr(cosim, "build_core", lambda *a, **k: None)
+    monkeypatch.setattr(cosim, "run_cosim", fault)
     code, out, err = cosim_main("--app", "tracker:Tracker", "--steps", "3", "-o", tmp_path)
     assert code == 3 and not out and err.count("\n") == 1, err
     assert err.startswith("cosim: error: the core raised a numerical fault at iteration 7: sig_gen raised "
@@ -281,14 +280,14 @@ def pendulum_work(build_root):
 
 
 def run_command(*args, cwd):
-    """``python -m kfgen.sim.ukf.run ARGS`` as a user runs it: not under pytest (whose
+    """``python -m kfgen.gen.cosim ukf ARGS`` as a user runs it: not under pytest (whose
     variable makes cocotb's runner log a failed test itself)."""
     import os
     import subprocess
     import sys
 
     env = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}
-    return subprocess.run([sys.executable, "-m", "kfgen.sim.ukf.run", *map(str, args)], cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "kfgen.gen.cosim", "ukf", *map(str, args)], cwd=cwd,
                           capture_output=True, text=True, env=env)
 
 
@@ -330,3 +329,94 @@ def test_pendulum_fault(pendulum_work, tmp_path, processor):
     assert proc.stderr.startswith("cosim: error: the core raised a numerical fault at iteration 2: update raised "
                                   "err_nan (a NaN or infinity in a result); log "), proc.stderr
     assert not (pendulum_work / "ukf_app" / "cosim.npz").exists()
+
+
+#: The docs' Pendulum with an f or an h that is wrong (the lines the test names: 12, 15, 19).
+BUGGY = f'''
+import importlib.util
+
+import numpy as np
+
+spec = importlib.util.spec_from_file_location("pendulum_example", {str(ROOT / "docs" / "examples" / "pendulum.py")!r})
+example = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(example)
+
+class Raises(example.Pendulum):
+    def f(self, x, w, u, dt):
+        return x[5] + w
+
+class LongH(example.Pendulum):
+    def h(self, x, v):
+        return np.array([x[0], x[1]]) + v[0]
+
+class SigmaOnly(example.Pendulum):
+    def h(self, x, v):
+        return np.array([x[0]]) + v if x[0] == self.x0[0] else None
+'''
+
+
+@pytest.mark.parametrize("cls,says", [
+    ("Raises", "Raises.f ({file}:12) raised IndexError: index 5 is out of bounds for axis 0 with size 2 "
+               "(called on x0)"),
+    ("LongH", "LongH.h ({file}:15) returned shape (2,), not m = 1 values (called on x0)"),
+    ("SigmaOnly", "SigmaOnly.h ({file}:19) returned None, not m = 1 values "
+                  "(called on x0 + chol(P0)[:, 0])"),
+])
+def test_buggy_f_or_h_is_refused_before_anything_is_built(tmp_path, monkeypatch, cls, says):
+    """An f or an h that raises or returns the wrong length, without --on-chip: one line naming
+    the function, its file:line and what was wrong, exit 2, nothing generated or built."""
+    import kfgen.gen.cosim as cosim
+
+    def never(*_a, **_k):
+        raise AssertionError("generated or built")
+    monkeypatch.setattr(cosim, "write_core", never)
+    monkeypatch.setattr(cosim, "build_core", never)
+    path = tmp_path / "buggy.py"
+    path.write_text(BUGGY)
+    code, out, err = cosim_main("--app", f"{path}:{cls}", "--steps", 2, "-o", tmp_path / "work")
+    assert code == 2 and not out and err.count("\n") == 1, err
+    assert err == f"cosim: error: {says.format(file=path)}\n", err
+    assert not (tmp_path / "work").exists()
+
+
+def test_relative_and_absolute_app_paths_generate_the_same_bytes(tmp_path, monkeypatch):
+    """The co-simulation's on-chip core from ``myapps/pendulum.py:Pendulum`` (relative to the
+    current directory) and from its absolute path: every generated file the same bytes, the
+    application recorded by its file's name."""
+    import shutil
+
+    import kfgen.gen.cosim as cosim
+
+    class Generated(Exception):
+        pass
+
+    def stop(*_a, **_k):
+        raise Generated
+    monkeypatch.setattr(cosim, "build_core", stop)
+    (tmp_path / "myapps").mkdir()
+    shutil.copy(ROOT / "docs" / "examples" / "pendulum.py", tmp_path / "myapps" / "pendulum.py")
+    monkeypatch.chdir(tmp_path)
+    for spec, out in (("myapps/pendulum.py:Pendulum", "rel"), (f"{tmp_path}/myapps/pendulum.py:Pendulum", "abs")):
+        with pytest.raises(Generated):
+            cosim_main("--app", spec, "--on-chip", "-o", tmp_path / out)
+    rel, abs_ = (sorted(p for p in (tmp_path / d / "ukf_app").rglob("*") if p.is_file()) for d in ("rel", "abs"))
+    assert [p.name for p in rel] == [p.name for p in abs_] and len(rel) > 5
+    for a, b in zip(rel, abs_):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    manifest = (tmp_path / "rel" / "ukf_app" / "ukf_app.json").read_text()
+    assert '"app": "pendulum.py:Pendulum"' in manifest and str(tmp_path) not in manifest
+
+
+@pytest.mark.verilator
+def test_on_chip_app_given_by_a_relative_path(build_root, tmp_path):
+    """``--app myapps/pendulum.py:Pendulum --on-chip`` from the directory that holds myapps (the
+    documented form): the run, in another directory, finds the application (two iterations of
+    the smallest on-chip core)."""
+    import shutil
+
+    (tmp_path / "myapps").mkdir()
+    shutil.copy(ROOT / "docs" / "examples" / "pendulum.py", tmp_path / "myapps" / "pendulum.py")
+    proc = run_command("--app", "myapps/pendulum.py:Pendulum", "--on-chip", "--steps", 2,
+                       "-o", build_root / "pendulum_on_chip", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.startswith("2 iterations of myapps/pendulum.py:Pendulum on ukf_app"), proc.stdout

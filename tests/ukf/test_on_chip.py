@@ -19,7 +19,8 @@ from kfgen.sim.toolchain import lint
 from kfgen.sim.ukf.accuracy import run_golden, run_reference
 from kfgen.sim.ukf.app import checked_scenario
 from kfgen.sim.ukf.apps.nanosat import Nanosat, attitude_error_deg
-from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.ukf.run import TB
 
 from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process
 
@@ -91,8 +92,8 @@ def test_tracker_on_chip_rtl(build_root):
     assert rc == 0 and not messages, "\n".join(messages)
     m = json.loads((out / "ukf_trk.json").read_text())
     assert m["engine"]["atan2_latency"] == m["engine"]["atan2_interval"] > 1
-    model = build_ukf_core(out, "ukf_trk", VERILATOR_CACHE)
-    run_ukf(model, out, "ukf_trk", ["on_chip_iterations"], "tracker", {"KFGEN_TB_ITERATIONS": "3"})
+    model = build_core(out, "ukf_trk", VERILATOR_CACHE)
+    run_tb(model, out, "ukf_trk", TB, ["on_chip_iterations"], "tracker", {"KFGEN_TB_ITERATIONS": "3"})
 
 
 def test_iteration_program_and_map():
@@ -168,8 +169,8 @@ def test_rtl_iterations(generated):
     region word for word against the golden model, the cycles equal to the manifest's."""
     rc, messages = lint(generated / "ukf_oc.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    model = build_ukf_core(generated, "ukf_oc", VERILATOR_CACHE)
-    run_ukf(model, generated, "ukf_oc", ["on_chip_iterations"], "on_chip", {"KFGEN_TB_ITERATIONS": "3"})
+    model = build_core(generated, "ukf_oc", VERILATOR_CACHE)
+    run_tb(model, generated, "ukf_oc", TB, ["on_chip_iterations"], "on_chip", {"KFGEN_TB_ITERATIONS": "3"})
 
 
 @pytest.mark.full
@@ -180,7 +181,7 @@ def test_c_processor(generated, tmp_path):
     control input): every word against the golden model, and the estimates those of the
     golden model's on-chip core. (In make test, on the small core: test_streams_rtl.)"""
     from kfgen.sim.ukf.run import build_driver, run_cosim
-    model = build_ukf_core(generated, "ukf_oc", VERILATOR_CACHE)
+    model = build_core(generated, "ukf_oc", VERILATOR_CACHE)
     driver = build_driver(generated, "ukf_oc", tmp_path)
     npz = tmp_path / "c.npz"
     run_cosim(model, generated, "ukf_oc", "c_processor", "c_on_chip", NANOSAT, 3, seed=2, out=npz, driver=driver)
@@ -257,8 +258,8 @@ def test_streams_rtl(streams_core):
     on the same core, by the Python software side and by the generated C driver."""
     rc, messages = lint(streams_core / "ukf_st.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    model = build_ukf_core(streams_core, "ukf_st", VERILATOR_CACHE)
-    run_ukf(model, streams_core, "ukf_st", ["stream_iterations", "on_chip_iterations"], "streams",
+    model = build_core(streams_core, "ukf_st", VERILATOR_CACHE)
+    run_tb(model, streams_core, "ukf_st", TB, ["stream_iterations", "on_chip_iterations"], "streams",
             {"KFGEN_TB_ITERATIONS": "4"})
     # the C driver's TOP_iterate(dev, u, z) on the same build, its estimates the golden model's
     from kfgen.sim.ukf.app import load_app
@@ -286,8 +287,8 @@ def test_streams_other_formats(build_root, fmt):
           "--name", top, "-o", out)
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    model = build_ukf_core(out, top, VERILATOR_CACHE)
-    run_ukf(model, out, top, ["stream_iterations", "on_chip_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
+    model = build_core(out, top, VERILATOR_CACHE)
+    run_tb(model, out, top, TB, ["stream_iterations", "on_chip_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
 
 
 @pytest.mark.full
@@ -295,8 +296,8 @@ def test_streams_other_formats(build_root, fmt):
 def test_nanosat_streams_rtl(build_root):
     out = build_root / "ukf_nanosat_streams"
     kfgen("ukf", *ON_CHIP, "--streams", "--name", "ukf_nst", "-o", out)
-    model = build_ukf_core(out, "ukf_nst", VERILATOR_CACHE)
-    run_ukf(model, out, "ukf_nst", ["stream_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
+    model = build_core(out, "ukf_nst", VERILATOR_CACHE)
+    run_tb(model, out, "ukf_nst", TB, ["stream_iterations"], "streams", {"KFGEN_TB_ITERATIONS": "3"})
 
 
 UNTRACEABLE = '''
@@ -405,6 +406,7 @@ def test_figure12_on_chip(tmp_path, capsys):
     """Figure 12 from the on-chip core's Verilog over the 1000 iterations: its estimates the
     golden model's, the attitude below 0.1 degree after the first second."""
     from kfgen.sim.ukf import plots
+    kfgen("ukf", "--app", "nanosat:Nanosat", "--on-chip", "-o", tmp_path / "rtl")
     plots.main(["-o", str(tmp_path / "fig"), "--on-chip", "--rtl", str(tmp_path / "rtl")])
     assert (tmp_path / "fig" / "figure12_on_chip.png").stat().st_size > 10_000
     out = capsys.readouterr().out.splitlines()
@@ -422,6 +424,7 @@ def test_figure12_sqrt(tmp_path, capsys):
     """Figure 12 of the square-root form from the printed P0 = I (make plots): the Verilog's
     estimates its golden model's, the attitude below 0.1 degree after the first second."""
     from kfgen.sim.ukf import plots
+    kfgen("ukf", "--app", "nanosat:NanosatPrinted", "--on-chip", "--form", "sqrt", "-o", tmp_path / "rtl")
     plots.main(["-o", str(tmp_path / "fig"), "--form", "sqrt", "--on-chip", "--rtl", str(tmp_path / "rtl")])
     assert (tmp_path / "fig" / "figure12_sqrt_on_chip.png").stat().st_size > 10_000
     out = capsys.readouterr().out.splitlines()
@@ -508,5 +511,5 @@ def test_shared_words_rtl(build_root):
     out.mkdir(parents=True, exist_ok=True)
     (out / "steered.py").write_text(SHARED_APP)
     kfgen("ukf", "--app", f"{out / 'steered.py'}:Steered", "--on-chip", "--name", "ukf_steered", "-o", out)
-    model = build_ukf_core(out, "ukf_steered", VERILATOR_CACHE)
-    run_ukf(model, out, "ukf_steered", ["on_chip_iterations"], "steered", {"KFGEN_TB_ITERATIONS": "4"})
+    model = build_core(out, "ukf_steered", VERILATOR_CACHE)
+    run_tb(model, out, "ukf_steered", TB, ["on_chip_iterations"], "steered", {"KFGEN_TB_ITERATIONS": "4"})

@@ -11,7 +11,8 @@ from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import schedules
 from kfgen.sim.toolchain import lint
-from kfgen.sim.ukf.run import build_ukf_core, run_ukf
+from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.ukf.run import TB
 
 from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
 
@@ -77,7 +78,7 @@ def test_bad_values_exit_2(tmp_path, args, says):
 
 @pytest.fixture(scope="module")
 def sim(rtl):
-    return build_ukf_core(rtl, TOP, VERILATOR_CACHE)
+    return build_core(rtl, TOP, VERILATOR_CACHE)
 
 
 @pytest.mark.verilator
@@ -85,7 +86,7 @@ def sim(rtl):
 @pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (n = 2, m = 1, nw = nv = 1, P = 1, binary32)."""
-    run_ukf(sim, rtl, TOP, tests, tests[0])
+    run_tb(sim, rtl, TOP, TB, tests, tests[0])
 
 
 #: More configurations, one Verilator build each (12-23 s of CPU), both testbench cases on it:
@@ -120,8 +121,8 @@ def test_cocotb_configurations(request, build_root, args):
     kfgen("ukf", *args, "--name", top, "-o", out)
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
-    model = build_ukf_core(out, top, VERILATOR_CACHE)
-    run_ukf(model, out, top, ["iterations", "errors"], "all")
+    model = build_core(out, top, VERILATOR_CACHE)
+    run_tb(model, out, top, TB, ["iterations", "errors"], "all")
 
 
 def test_two_word_elements_in_amaranth():
@@ -193,4 +194,4 @@ def test_two_word_elements_in_amaranth():
 @pytest.mark.xdist_group("ukf_core")
 @pytest.mark.parametrize("sequences", [ENGINE_CAMPAIGN[0], pytest.param(ENGINE_CAMPAIGN[1], marks=pytest.mark.full)])
 def test_fault_campaign(rtl, sim, sequences):
-    run_fault_campaign(sim, rtl, TOP, sequences)
+    run_fault_campaign(sim, rtl, TOP, TB, sequences)

@@ -50,7 +50,7 @@ class _Map:
 
 
 async def engine_campaign(tb, clean, clock_ns: int, sequences: int | None = None):
-    """Run ``sequences`` fault sequences on ``tb`` (a :class:`kfgen.sim.ukf.tb.TB`, its clock
+    """Run ``sequences`` fault sequences on ``tb`` (a :class:`kfgen.sim.engine.tb.TB`, its clock
     period ``clock_ns``), each followed by ``await clean(tb)``; the counts of what was done,
     for the log."""
     sequences = int(os.environ.get("KFGEN_TB_SEQUENCES", "20")) if sequences is None else sequences

@@ -1,0 +1,4 @@
+"""What every core on the engine (the UKF, the IMM) shares to simulate: the cocotb harness
+(:mod:`.tb`), the Verilator build and run of a generated core (:mod:`.run`), the golden side
+of the core's prologue (:mod:`.prologue`), the bounded waits (:mod:`.watchdog`) and the fault
+campaigns on the bus (:mod:`.campaign`)."""
