@@ -35,6 +35,8 @@ from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.sim.toolchain import ToolMissing
 
+from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.imm.run import TB
 from kfgen.sim.cluster import add_arguments, collect, failed, open_runner, task_seconds, timed
 
 from . import bench_gen
@@ -50,8 +52,6 @@ PES = (1, 2, 4)
 
 def _measure(work: Path, top: str, cache: Path) -> dict:
     """One iteration of the testbench in Verilator: the cycles it measured."""
-    from kfgen.sim.engine.run import build_core, run_tb
-    from kfgen.sim.imm.run import TB
 
     t0 = time.monotonic()
     model = build_core(work, top, cache)

@@ -47,6 +47,8 @@ from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
 from kfgen.sim.ukf.app import load_app
 
+from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.ukf.run import TB, run_cosim
 from kfgen.sim.cluster import (add_arguments, collect, failed, runner_argv as _runner_argv, shared, task_seconds,
                                timed)
 
@@ -97,8 +99,6 @@ def measured_cycles(log: str) -> dict[str, int]:
 
 def _simulate(work: Path, top: str, cache: Path) -> dict:
     """Build and run one iteration of the testbench; the measured cycles, and the seconds."""
-    from kfgen.sim.engine.run import build_core, run_tb
-    from kfgen.sim.ukf.run import TB
 
     t0 = time.monotonic()
     model = build_core(work, top, cache)
@@ -128,8 +128,6 @@ def _system(work: Path, top: str, cache: Path, beats: str) -> dict:
     iteration per part, and the simulation's speed."""
     import numpy as np
 
-    from kfgen.sim.engine.run import build_core
-    from kfgen.sim.ukf.run import run_cosim
 
     model = build_core(work, top, cache)
     npz = work / f"system_{beats}.npz"
@@ -369,8 +367,6 @@ def part5_ldl(chip: list[dict], no_fmax: bool) -> dict:
 
 def _simulate_on_chip(work: Path, top: str, cache: Path) -> dict:
     """One iteration of the on-chip testbench, which asserts the manifest's cycles."""
-    from kfgen.sim.engine.run import build_core, run_tb
-    from kfgen.sim.ukf.run import TB
     run_tb(build_core(work, top, cache), work, top, TB, ["on_chip_iterations"], "on_chip",
             env={"KFGEN_TB_ITERATIONS": "1"})
     return {}
