@@ -110,19 +110,17 @@ class _Forward:
         return TraceError(f"{self.name} does not differentiate ({self.sites.get(key, '?')}): {what} {why}")
 
     def _unit(self, kind, args, key):
-        """``kind`` of the values ``args``, folded when they are constants."""
-        if all(a.is_const for a in args):
-            vals = [a.c0 for a in args]
-            if kind == "div":
-                return args[0] / args[1]
-            if kind == "sqrt" and vals[0] < 0:
-                raise self._refuse(key, "of a negative constant at the linearisation point")
-            fold = {"sqrt": math.sqrt, "exp": math.exp, "sin": math.sin, "cos": math.cos, "atan2": math.atan2,
-                    "max": max}[kind]
-            return T((), fold(*vals))
+        """``kind`` of the values ``args``, folded when they are constants (a division as the
+        tracer divides: by a constant, a multiplication by its reciprocal)."""
         if kind == "div":
             return args[0] / args[1]
-        return T.word((kind, *(a.key() for a in args)))
+        if not all(a.is_const for a in args):
+            return T.word((kind, *(a.key() for a in args)))
+        vals = [a.c0 for a in args]
+        if kind == "sqrt" and vals[0] < 0:
+            raise self._refuse(key, "of a negative constant at the linearisation point")
+        fold = {"sqrt": math.sqrt, "exp": math.exp, "sin": math.sin, "cos": math.cos, "atan2": math.atan2, "max": max}
+        return T((), fold[kind](*vals))
 
     def value(self, key) -> T:
         """The word's value at the point, rebuilt (the zeroed inputs folded)."""

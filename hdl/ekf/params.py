@@ -43,7 +43,8 @@ class EkfParams:
         ``iterative`` or ``pipelined`` divider and square root; ``None``: iterative at P = 1,
         pipelined above.
     banks : int or None
-        Dual-port banks of the operand memory, 2..2P x 4; ``None``: 2P.
+        Dual-port banks of the operand memory, at least 2, P x banks at most
+        :data:`~kfgen.hdl.engine.params.GEN_CROSSBAR_MAX`; ``None``: 2P.
     format : str
         Float format of the buffer and the arithmetic (at most 64 bits); its canonical name.
     streams : bool
@@ -84,8 +85,8 @@ class EkfParams:
             raise ParamError("pes", f"must be a positive integer, not {self.pes!r}")
         object.__setattr__(self, "div_sqrt", check_div_sqrt(self.div_sqrt, self.pes))
         banks = 2 * self.pes if self.banks is None else self.banks
-        if isinstance(banks, bool) or not isinstance(banks, int) or not 2 <= banks <= 8 * self.pes:
-            raise ParamError("banks", f"must be an integer in 2..{8 * self.pes} (8P), not {banks!r}")
+        if isinstance(banks, bool) or not isinstance(banks, int) or banks < 2:
+            raise ParamError("banks", f"must be an integer >= 2, not {banks!r}")
         object.__setattr__(self, "banks", banks)
         check_generation(self.pes, banks, lambda p: 2 * p)
         # the covariance update P = P^- - K (H P^-) alone is n (n + 1) / 2 x m multiply-adds

@@ -27,6 +27,7 @@ def test_params_defaults_and_sizes():
     (dict(app=""), "app"), (dict(app=3), "app"), (dict(states=0), "states"), (dict(observations=256), "observations"),
     (dict(process_noise=True), "process_noise"), (dict(inputs=-1), "inputs"), (dict(pes=0), "pes"),
     (dict(pes=17), "pes"), (dict(div_sqrt="fast"), "div_sqrt"), (dict(banks=1), "banks"),
+    (dict(pes=8, banks=32), "pes"),
     (dict(format="binary128"), "format"), (dict(streams=1), "streams"), (dict(irq="yes"), "irq"),
     (dict(name="module"), "name"), (dict(name="2x"), "name"),
 ])
