@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FiniteDifferences", "ekf_step", "run_reference"]
+__all__ = ["central_differences", "FiniteDifferences", "ekf_step", "run_reference"]
 
 
-def _central(fn, at: np.ndarray, step: float) -> np.ndarray:
+def central_differences(fn, at: np.ndarray, step: float) -> np.ndarray:
     """d fn / d at by central differences, each input's step ``step`` times max(1, |at_j|)."""
     cols = []
     for j in range(len(at)):
@@ -36,15 +36,15 @@ class FiniteDifferences:
     def fx(self, x, u):
         app = self.app
         w0 = np.zeros(app.nw)
-        F = _central(lambda xx: app.f(xx, w0, u, app.dt), np.asarray(x, dtype=np.float64), self.step)
-        L = _central(lambda ww: app.f(x, ww, u, app.dt), w0, self.step)
+        F = central_differences(lambda xx: app.f(xx, w0, u, app.dt), np.asarray(x, dtype=np.float64), self.step)
+        L = central_differences(lambda ww: app.f(x, ww, u, app.dt), w0, self.step)
         return F, L
 
     def hx(self, x):
         app = self.app
         v0 = np.zeros(app.nv)
-        H = _central(lambda xx: app.h(xx, v0), np.asarray(x, dtype=np.float64), self.step)
-        M = _central(lambda vv: app.h(x, vv), v0, self.step)
+        H = central_differences(lambda xx: app.h(xx, v0), np.asarray(x, dtype=np.float64), self.step)
+        M = central_differences(lambda vv: app.h(x, vv), v0, self.step)
         return H, M
 
 

@@ -14,7 +14,7 @@ from kfgen.hdl.ekf.jacobian import linearise
 from kfgen.hdl.ekf.models import ekf_models
 from kfgen.hdl.engine.trace import TraceError, lower, record, trace
 from kfgen.sim.ekf.golden import evaluate
-from kfgen.sim.ekf.reference import FiniteDifferences, _central
+from kfgen.sim.ekf.reference import FiniteDifferences, central_differences
 
 
 def _points(app, k=4):
@@ -74,7 +74,7 @@ def test_each_rule_against_finite_differences(rule):
         x = rng.uniform(0.4, 1.6, 3)
         values, J = evaluate(lin, {"x": x})
         np.testing.assert_allclose(values, fn(x), rtol=1e-13, atol=1e-15)
-        want = _central(fn, x, 1e-6)
+        want = central_differences(fn, x, 1e-6)
         np.testing.assert_allclose(J["J"], want, rtol=1e-7, atol=1e-8, err_msg=rule)
 
 
