@@ -47,7 +47,7 @@ import numpy as np
 
 from ..linalg.program import OPS, Dot
 
-__all__ = ["TraceError", "T", "Model", "trace", "TRACED_NUMPY"]
+__all__ = ["TraceError", "T", "Model", "trace", "record", "lower", "TRACED_NUMPY"]
 
 
 class TraceError(ValueError):
@@ -81,6 +81,11 @@ def _key_order(k):
     return repr(k)
 
 
+#: While :func:`record` runs: operation word -> ``file:line`` where the function first
+#: computed it (what a later pass, such as differentiation, names when it refuses the word).
+_sites: dict | None = None
+
+
 def _const(value) -> bool:
     return not isinstance(value, T)
 
@@ -102,6 +107,8 @@ class T:
 
     @classmethod
     def word(cls, key) -> T:
+        if _sites is not None and key[0] != "in":
+            _sites.setdefault(key, _where())
         return cls(((1.0, key, None),))
 
     @classmethod
@@ -548,11 +555,20 @@ def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Mod
     TraceError
         For a construct that does not trace, or a result that is not a flat array of numbers.
     """
+    outs, _ = record(fn, inputs, name=name, scope=scope)
+    return lower(outs, varying=frozenset(inputs if varying is None else varying))[0]
+
+
+def record(fn, inputs: dict, *, name: str = "f", scope=None) -> tuple[list[T], dict]:
+    """``fn``'s results as traced values (:func:`trace`'s first half: its arguments and
+    errors), and where each operation word was first computed (word -> ``file:line``)."""
+    global _sites
     args = [np.array([T.word(("in", key, k)) for k in range(length)], dtype=object)
             for key, length in inputs.items()]
     func = getattr(scope or fn, "__func__", scope or fn)
     scope = getattr(func, "__globals__", {})
     patched = {k: v for k, v in scope.items() if v is np}
+    sites = _sites = {}
     try:
         scope.update({k: TRACED_NUMPY for k in patched})
         try:
@@ -571,6 +587,7 @@ def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Mod
             raise TraceError(f"{name} does not trace ({where}): {type(exc).__name__}: {text}") from None
     finally:
         scope.update(patched)
+        _sites = None
     try:
         flat = np.asarray(result, dtype=object).reshape(-1)
     except Exception:
@@ -580,11 +597,20 @@ def trace(fn, inputs: dict, *, varying=None, name: str = "f", scope=None) -> Mod
         if isinstance(v, (bool, np.bool_)) or not isinstance(v, (T, int, float, np.integer, np.floating)):
             raise TraceError(f"{name} must return numbers, not {type(v).__name__}")
         outs.append(T.lift(v))
-    low = _Lowering(frozenset(inputs if varying is None else varying))
+    return outs, sites
+
+
+def lower(outs, words=(), *, varying=frozenset()) -> tuple[Model, list]:
+    """Traced values as a :class:`Model` (:func:`trace`'s second half): ``outs`` written to
+    the outputs ``("out", k)``; ``words`` computed too, each into a word of its own or one
+    that already holds it (returned: an input, a constant, an output or a temporary), all
+    their common terms shared. ``varying`` names the per-point inputs (:attr:`Model.shared`)."""
+    low = _Lowering(frozenset(varying))
     for k, t in enumerate(outs):
         key = t.key()
         if key[0] in _COMPUTED and key not in low.addr:
             low.ensure(key, dst=("out", k))
         else:
             low._emit(("copy", ("out", k), low.ensure(key)))
-    return Model(len(outs), low.ops, low.temps, low.shared)
+    at = [low.ensure(T.lift(t).key()) for t in words]
+    return Model(len(outs), low.ops, low.temps, low.shared), at

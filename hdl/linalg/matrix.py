@@ -33,7 +33,14 @@ of the constant 1 from :func:`const`)::
 
 (``tests/engine/test_linalg_matrix.py`` runs it against numpy's equations.) An extended
 Kalman filter is the same with F and H the Jacobians (x^- = f(x) and the prediction h(x^-)
-computed by the core's models instead of the first products). The Joseph form
+computed by the core's models instead of the first products).
+
+Structure known at generation (a Jacobian's zeros and ones, a block-diagonal covariance) is
+told by the views: an entry ``None`` is a structural zero, and :func:`product` drops its
+terms; given ``one`` (the constant 1's address) it takes a term ``1 * b`` as the sum's addend,
+and :func:`sparse_product` returns a view whose entries that are one word times 1 are that
+word, no operation: ``sparse_product(prog, W, beside(F, L, n), diagonal_blocks(P, Q, n), ...)``
+is ``[F L] diag(P, Q)`` on the nonzero terms only (:mod:`kfgen.hdl.ekf.programs`). The Joseph form
 P = (I - K H) P (I - K H)^T + K R K^T is five products: A = I - K H (``init`` a view of the
 constant words 1 and 0), A P, (A P) A^T, K R, and (K R) K^T added to the third, mirrored.
 """
@@ -46,8 +53,9 @@ from kfgen.hdl.arith.float.exact import round_to_format
 
 from .program import Copy, Div, Dot, Sqrt
 
-__all__ = ["word", "const", "transpose", "block", "row", "fill", "mirrored", "product", "add", "hadamard",
-           "ldl", "cholesky", "forward_substitute", "back_substitute", "solve_ldl"]
+__all__ = ["word", "const", "transpose", "block", "row", "fill", "mirrored", "beside", "diagonal_blocks", "product",
+           "sparse_product", "add", "hadamard", "ldl", "cholesky", "forward_substitute", "back_substitute",
+           "solve_ldl"]
 
 
 def word(fmt, value) -> int:
@@ -92,6 +100,20 @@ def mirrored(a):
     return lambda i, j=0: (a(i, j),) if i == j else (a(i, j), a(j, i))
 
 
+def beside(a, b, cols):
+    """``[a b]``: ``a`` (``cols`` columns) and ``b`` side by side."""
+    return lambda i, j=0: a(i, j) if j < cols else b(i, j - cols)
+
+
+def diagonal_blocks(a, b, n):
+    """``[[a, 0], [0, b]]`` for the ``n x n`` ``a``: ``None`` (a structural zero) off the blocks."""
+    def view(i, j=0):
+        if (i < n) != (j < n):
+            return None
+        return a(i, j) if i < n else b(i - n, j - n)
+    return view
+
+
 def _check(check, i, j):
     return check(i, j) if callable(check) else check
 
@@ -99,7 +121,7 @@ def _check(check, i, j):
 # ---- operations --------------------------------------------------------------------------
 
 def product(prog, dst, a, b, rows, inner, cols, *, init=None, neg=False, lower=False, reverse=False,
-            check=None):
+            check=None, one=None):
     """``dst = init + a b`` (``init - a b`` with ``neg``): ``a`` is ``rows x inner``, ``b``
     ``inner x cols``; ``init`` a view of ``dst``'s shape, or ``None`` for none.
 
@@ -107,12 +129,53 @@ def product(prog, dst, a, b, rows, inner, cols, *, init=None, neg=False, lower=F
     ``j <= i`` (a symmetric result: give ``dst`` as :func:`mirrored` to write both halves).
     A sum's terms run over ``k`` ascending, descending with ``reverse`` (put last the term
     whose operands are ready last). ``check`` is ``None``, ``"pivot"``, ``"finite"`` or a
-    function ``(i, j) -> check``."""
+    function ``(i, j) -> check``.
+
+    Structural zeros (an ``a``, ``b`` or ``init`` entry ``None``) are dropped, and with
+    ``one`` (the constant 1's address) the first term ``1 * b`` not negated becomes the
+    addend of an entry without ``init``; an entry left with no term is its addend copied, or
+    with none not written at all (a structural zero of the result)."""
     ks = range(inner - 1, -1, -1) if reverse else range(inner)
     for i in range(rows):
         for j in range(i + 1 if lower else cols):
-            prog.emit(Dot(dst(i, j), None if init is None else init(i, j),
-                          [(a(i, k), b(k, j), neg) for k in ks], _check(check, i, j)))
+            start, terms = _terms(a, b, i, j, ks, neg, None if init is None else init(i, j), one)
+            if terms:
+                prog.emit(Dot(dst(i, j), start, terms, _check(check, i, j)))
+            elif start is not None:
+                prog.emit(Copy(dst(i, j), start, _check(check, i, j)))
+
+
+def _terms(a, b, i, j, ks, neg, start, one):
+    """The addend and the terms of entry ``(i, j)`` of ``a b``: a structural zero's (a view's
+    ``None``) dropped, and with ``one`` the first term ``1 * b`` (or ``a * 1``), not negated,
+    taken as the addend when there is none."""
+    terms = []
+    for k in ks:
+        x, y = a(i, k), b(k, j)
+        if x is None or y is None:
+            continue
+        if one is not None and start is None and not neg and one in (x, y):
+            start = y if x == one else x
+            continue
+        terms.append((x, y, neg))
+    return start, terms
+
+
+def sparse_product(prog, work, a, b, rows, inner, cols, one):
+    """``a b`` for operands whose structure is known at generation (views giving ``None`` for
+    a structural zero, ``one``'s address for a 1), as a view of the result: an entry that is
+    one word times 1 is that word and one with no term a structural zero (``None``), neither
+    costing an operation; any other is one :class:`~.program.Dot` into ``work(i, j)`` (its
+    first ``1 * b`` the addend), row by row."""
+    out = {}
+    for i in range(rows):
+        for j in range(cols):
+            start, terms = _terms(a, b, i, j, range(inner), False, None, one)
+            if terms:
+                prog.emit(Dot(work(i, j), start, terms))
+                start = work(i, j)
+            out[i, j] = start
+    return lambda i, j=0: out[i, j]
 
 
 def add(prog, dst, a, b, one, rows, cols=1, *, neg=False, check=None):

@@ -1,0 +1,30 @@
+"""The EKF's program and schedule for one :class:`~kfgen.hdl.ekf.params.EkfParams` and its
+application's compiled models: the one place that turns them into the engine's machine and
+program, so the core, its manifest and the golden model cannot disagree."""
+
+from __future__ import annotations
+
+from ..engine.machine import machine as engine_machine
+from ..engine.machine import schedules as engine_schedules
+from ..engine.params import check_work
+from .models import EkfModels
+from .programs import EkfPrograms, build_ekf
+
+__all__ = ["programs", "machine", "schedules"]
+
+
+def programs(params, models: EkfModels) -> EkfPrograms:
+    """The memory layout and the iteration's program."""
+    return build_ekf(params, models)
+
+
+def machine(params):
+    """The engine's (:func:`kfgen.hdl.engine.machine.machine`: P PEs, ``params.banks`` banks, the
+    divider and square root of ``params.div_sqrt``, the units the programs use)."""
+    return engine_machine(params)
+
+
+def schedules(params, progs: EkfPrograms) -> dict:
+    """``{"iteration": Schedule}``."""
+    check_work(sum(prog.fma_count for prog in progs.steps.values()), params.pes, "states")
+    return engine_schedules(progs.steps, machine(params))

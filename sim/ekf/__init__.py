@@ -1,0 +1,1 @@
+"""The EKF core's models: the bit-exact golden runner and a float64 reference."""
