@@ -5,7 +5,9 @@ The reference checks the core's program, not its rounding: written from the text
 equations with numpy's own linear algebra (K by a solve of S, not by the core's LDL^T).
 ``predict`` and ``update`` are pure functions as filterpy's ``kalman.predict``/``update``;
 :func:`run_reference` keeps ``x_prior``/``P_prior`` and ``x_post``/``P_post`` of every
-iteration. The covariance update is the core's symmetric form P^- - K S K^T, symmetrised.
+iteration. The covariance update is the textbook P^- - K S K^T, symmetrised: equal in exact
+arithmetic to the core's Joseph form (the gain is the optimal one) and to filterpy's, whose
+``update`` takes Joseph's.
 
 The golden model (:func:`run_golden`) runs the core's own program
 (:mod:`kfgen.hdl.kf.programs`) word by word through :func:`kfgen.sim.linalg.exec.run`, or
@@ -69,10 +71,10 @@ def run_reference(F, H, Q, R, x0, P0, zs, B=None, us=None, K=None) -> KfRun:
             xp, Pp = predict(x, P, F, Q, B, u)
             x, P, Kk, _, _ = update(xp, Pp, z, H, R)
         else:
-            xp = predict(x, np.zeros_like(F), F, np.zeros_like(F), B, u)[0]
-            Pp, Kk = np.zeros_like(F), np.asarray(K, float)
+            xp, Pp = predict(x, np.zeros_like(F), F, np.zeros_like(F), B, u)
+            Kk, P = np.asarray(K, float), Pp
             x = xp + Kk @ (z - H @ xp)
-        for name, v in zip(KfRun._fields, (xp, Pp, x, P if K is None else Pp, Kk)):
+        for name, v in zip(KfRun._fields, (xp, Pp, x, P, Kk)):
             out[name].append(v)
     return KfRun(*(np.array(v) for v in out.values()))
 
@@ -109,10 +111,21 @@ def _inputs(progs: KfPrograms, zs, us):
     return zs, us
 
 
+def _prologue(progs: KfPrograms):
+    """The prologue step's program (run once: the buffer's values are written once), or None."""
+    return None if progs.prologue is None else progs.steps[progs.prologue[0]]
+
+
+def _flags(st):
+    """The status as the runners' flags (1 pivot, 2 NaN): an int, or an array per run."""
+    return (st.pivot * 1) | (st.nan * 2)
+
+
 def run_golden(progs: KfPrograms, values: dict, zs, us=None, keep=("x", "P")) -> dict:
     """The golden model over the measurements ``zs`` (T, m) and inputs ``us`` (T, nu):
     each region of ``keep`` (T, rows, cols) as the core's buffer holds it after each
-    iteration, and ``flags`` (T,) of its status (1 pivot, 2 NaN)."""
+    iteration, and ``flags`` (T,) of its status (1 pivot, 2 NaN; the prologue's, which runs
+    once after the values are written, in the first iteration's)."""
     lay, f = progs.layout, progs.fmt
     zs, us = _inputs(progs, zs, us)
     mem = lay.initial_memory()
@@ -127,13 +140,15 @@ def run_golden(progs: KfPrograms, values: dict, zs, us=None, keep=("x", "P")) ->
 
     for name, v in values.items():
         put(name, v)
+    pre = _prologue(progs)
+    flags = 0 if pre is None else _flags(run(pre, mem))
     out = {k: [] for k in (*keep, "flags")}
     for k, z in enumerate(zs):
         put("z", z)
         if us is not None:
             put("u", us[k])
-        st = run(progs.iterate, mem)
-        out["flags"].append(int(st.pivot) | 2 * int(st.nan))
+        out["flags"].append(flags | _flags(run(progs.iterate, mem)))
+        flags = 0
         for name in keep:
             out[name].append(get(name))
     return {k: np.array(v) for k, v in out.items()}
@@ -155,13 +170,15 @@ def run_golden_batch(progs: KfPrograms, values: dict, zs, us=None, keep=("x", "P
 
     for name, v in values.items():
         put(name, v)
+    pre = _prologue(progs)
+    flags = 0 if pre is None else _flags(run_batch(pre, mem))
     out = {k: [] for k in (*keep, "flags")}
     for k in range(T):
         put("z", zs[:, k])
         if us is not None:
             put("u", np.asarray(us, float)[:, k])
-        st = run_batch(progs.iterate, mem)
-        out["flags"].append(st.pivot.astype(int) | 2 * st.nan.astype(int))
+        out["flags"].append(flags | _flags(run_batch(progs.iterate, mem)))
+        flags = 0
         for name in keep:
             r = lay[name]
             out[name].append(mem[:, r.base:r.base + r.size].reshape(runs, r.rows, r.cols).copy())

@@ -91,12 +91,12 @@ def main(argv=None) -> None:
     ap.add_argument("--iterations", type=int, default=10_000)
     ap.add_argument("--seeds", type=int, default=4)
     args = ap.parse_args(argv)
-    print(f"binary32, {args.iterations:,} iterations x {args.seeds} seeds, R = {R_SCALE:g} x P0's scale")
-    print("| model | update | P indefinite (iterations) | min eigenvalue / max abs P | err flags "
-          "| x rel. error | diag P rel. error | the same, whole run |")
+    print(f"binary32, {args.iterations:,} iterations x {args.seeds} seeds, P0 = I, R = {R_SCALE:g} I unless said")
+    print("P indefinite: iterations; errors: relative, from float64, in the last half (diag P: and the whole run)")
+    print("| model | update | P indefinite | min eig / max abs P | err flags | x error | diag P error | whole run |")
     print("|---|---|---|---|---|---|---|---|")
     for label, model in (("CV 1 axis, n=2 m=1", cv_model(1)), ("CV 2 axes, n=4 m=2 nu=1", cv_model(2, inputs=1)),
-                         ("CV 1 axis, R = 1e-8", cv_model(1, r=1e-8))):
+                         ("CV 1 axis, R = 1e-8 I", cv_model(1, r=1e-8))):
         for update in UPDATES:
             r = measure(model, update, args.iterations, args.seeds)
             print(f"| {label} | {update} | {r['indefinite']} | {r['min_eig']:.2e} | {r['flags']} "

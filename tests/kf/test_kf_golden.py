@@ -69,7 +69,7 @@ def _long_run(steps):
     symmetric form does not (the reason the core takes Joseph's: hdl/kf/programs.py)."""
     joseph = measure(cv_model(1, r=1e-8), "joseph", steps, 2)
     assert joseph["indefinite"] == 0 and joseph["flags"] == 0
-    assert joseph["p_err_all"] < 1e-2 and joseph["x_err"] < 1e-3
+    assert joseph["p_err_all"] < 1e-2 and joseph["x_err"] < 2e-2  # x: binary32's step of a growing position
     assert measure(cv_model(1, r=1e-8), "symmetric", steps, 2)["indefinite"] > 0
     at_1e6 = measure(cv_model(2, inputs=1), "joseph", steps, 2)
     assert at_1e6["indefinite"] == 0 and at_1e6["flags"] == 0 and at_1e6["p_err_all"] < 1e-2
