@@ -108,6 +108,8 @@ class KfSizes:
 
 @dataclass
 class KfPrograms:
+    """The layout and the steps of one configuration (``gain``: the steady gain's prologue)."""
+
     sizes: KfSizes
     fmt: FloatFormat
     layout: Layout
