@@ -329,7 +329,7 @@ def on_chip_rows(cores: list[tuple[str, int]], out: Path, target_mhz: float | No
     """Part 5's cores, ``(app, P)`` each (for ``target_mhz``), generated (as ``runner``'s tasks,
     if given): one row each."""
     from kfgen.hdl.linalg.schedule import TRIG_FIELDS
-    from kfgen.sim.ukf.app import load_app  # (also hands the application loader to hdl)
+    from kfgen.hdl.engine.app import load_app
     sizes = {app: load_app(app).core_parameters() for app, _ in cores}
     configs = [UkfParams(**sizes[app], app=app, on_chip=True, pes=p, target_mhz=target_mhz,
                          name=f"ukf_{'oc' if app == ON_CHIP_APP else 'trk'}_p{p}{target_tag(target_mhz)}")

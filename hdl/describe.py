@@ -83,7 +83,7 @@ class CoreDescriptor:
     A parameter whose default is ``True`` is a switch: the command line offers
     ``--no-<name>`` to turn it off.
 
-    ``bench``, ``documents``, ``app`` and ``smoke`` reach into ``gen`` and ``sim``, which
+    ``bench``, ``documents`` and ``smoke`` reach into ``gen`` and ``sim``, which
     ``hdl`` never imports: a descriptor leaves them out and :func:`kfgen.gen.cores.bind` fills
     them in (with the register map's manifest entries added to ``extra``).
     """

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
+from ..engine.app import load_app
 from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
 from .params import SIZE_MAX, UkfParams
 from .regmap import steps
@@ -34,7 +35,7 @@ def _docs() -> dict[str, Doc]:
                     "docs/ukf.md)", "", "ldl (the default) or sqrt, any case"),
         "app": Doc("the application the core is sized for (its n, m, nw, nv and W0) and, on an on_chip core, the one "
                    "whose f and h are compiled into it", "", "MODULE:CLASS or FILE.py:CLASS of a "
-                   "kfgen.sim.ukf.app.UkfApplication subclass"),
+                   "kfgen.hdl.engine.app.UkfApplication subclass (kfgen.sim.ukf.app re-exports it)"),
         "on_chip": Doc("compile the application's f and h into the engine: one start (CTRL.step = iteration) "
                        "runs the whole iteration, reading z and u (docs/applications.md says what traces)", "",
                        "a switch; needs --app"),
@@ -83,6 +84,11 @@ def _extra(params, core) -> dict:
     }
 
 
+def _app(spec) -> dict:
+    """The parameters the application ``spec`` fixes (its sizes and W0)."""
+    return load_app(spec).core_parameters()
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -93,4 +99,5 @@ CORE = CoreDescriptor(
     extra=_extra,
     examples=({},),
     waivers=engine_waivers,
+    app=_app,
 )

@@ -68,3 +68,18 @@ def test_dependencies_point_down():
                            ("kfgen.gen.synth", "[]"), ("kfgen.gen.examples", "[]")):
         proc = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True)
         assert proc.stdout.strip() == loaded, module
+
+
+def test_the_core_loads_its_application_itself():
+    """A UKF core traces an application's f and h without a loader handed in: a fresh
+    interpreter that imports only hdl builds an on-chip parameter object (the application's
+    module imports what it needs), and hdl keeps no mutable loader."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from kfgen.hdl.ukf.params import UkfParams; import kfgen.hdl.ukf.models as m; "
+            "p = UkfParams(states=4, observations=2, process_noise=2, measurement_noise=2, "
+            "app='tracker:Tracker', on_chip=True); "
+            "print(p.models.fma_count > 0, hasattr(m, 'set_loader'), 'kfgen.gen.cores' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.split() == ["True", "False", "False"]
