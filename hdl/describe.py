@@ -12,11 +12,13 @@ Pure Python: no Amaranth import, so the parameter modules stay light.
 
 from __future__ import annotations
 
+import functools
 import re
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-__all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS"]
+__all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS", "once_per_params"]
 
 
 class ParamError(ValueError):
@@ -101,6 +103,32 @@ class CoreDescriptor:
     waivers: Callable = lambda params: ""
     app: Callable | None = None
     smoke: Callable | None = None
+
+
+_BUILT: dict[int, dict] = {}  # id(params) -> {function: what it built}, while the object lives
+
+
+def once_per_params(build: Callable) -> Callable:
+    """``build(params)`` built once per parameter object and reused (a core's register map,
+    programs and machine): one generation builds each once, whoever asks for it (the
+    parameters' own validation, the component, the manifest, the documents).
+
+    Kept by the object's identity, not its value: a parameter object is frozen once
+    validated, and validation may ask while it fills in the last derived field (the map's
+    address width, which the map it builds already has). What was built is dropped with the
+    object, and never pickled with it.
+    """
+    @functools.wraps(build)
+    def built(params):
+        key = id(params)
+        memo = _BUILT.get(key)
+        if memo is None:
+            memo = _BUILT[key] = {}
+            weakref.finalize(params, _BUILT.pop, key, None)
+        if build not in memo:
+            memo[build] = build(params)
+        return memo[build]
+    return built
 
 
 #: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:

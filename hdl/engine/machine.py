@@ -9,6 +9,7 @@ from ..arith.float.exp import FloatExp
 from ..arith.float.fma import FloatFMA
 from ..arith.float.sqrt import FloatSqrt
 from ..arith.float.trig import FloatAtan2, FloatCos, FloatSin
+from ..describe import once_per_params
 from ..linalg.schedule import Machine, schedule
 
 __all__ = ["machine", "schedules", "timing", "engine_mhz", "ENGINE_MHZ", "FETCHED_MHZ"]
@@ -68,6 +69,7 @@ def _sqrt_stages(fmt, per_op):
                default=unit.stages)
 
 
+@once_per_params
 def machine(params) -> Machine:
     """P processing elements (the FMA's default pipeline), ``params.banks`` memory banks, and
     the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle: an
@@ -75,7 +77,8 @@ def machine(params) -> Machine:
     pipelined (the square root with its rounding's select registered); the exponential at its
     default pipeline and the iterative sin, cos and atan2 (a core builds them only when its
     programs use them). A core's ``target_mhz`` (if it has one set) picks the FMA's, divider's,
-    square root's and exponential's stages instead (:func:`timing`)."""
+    square root's and exponential's stages instead (:func:`timing`). Built once per
+    parameter object."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
     div = FloatDiv.plan(fmt, cycles_per_op=per_op[FloatDiv],

@@ -10,6 +10,7 @@ iteration: mixing, the R Kalman filters and the combination (:mod:`kfgen.hdl.imm
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.regmap import Field, Register, RegisterMap, place_map, status_registers
 
 __all__ = ["imm_map", "regions", "CORE_ID", "MAP_VERSION", "CYCLES"]
@@ -97,9 +98,10 @@ CYCLES = {
 }
 
 
+@once_per_params
 def imm_map(params) -> RegisterMap:
     """The register and memory map of an IMM core with parameters ``params`` (a
-    :class:`kfgen.hdl.imm.params.ImmParams`).
+    :class:`kfgen.hdl.imm.params.ImmParams`), built once per parameter object.
 
     Raises
     ------

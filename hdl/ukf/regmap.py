@@ -18,6 +18,7 @@ the C header and the Markdown document all print them from the declaration.
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
 from .params import covariance_region
 
@@ -163,9 +164,10 @@ def _on_chip(regions, nu, column):
     return tuple(out)
 
 
+@once_per_params
 def ukf_map(params) -> RegisterMap:
     """The register and memory map of a UKF core with parameters ``params`` (a
-    :class:`kfgen.hdl.ukf.params.UkfParams`).
+    :class:`kfgen.hdl.ukf.params.UkfParams`), built once per parameter object.
 
     Raises
     ------
