@@ -224,8 +224,8 @@ def _convert(text: str, default):
     """A command-line string as the type of the field's default; text that is not one is
     passed on as it is, so that the parameter class's own check (one message shape per
     parameter, with its range) rejects it."""
-    if isinstance(default, str):
-        return text
+    if default is not None and (isinstance(default, bool) or not isinstance(default, (int, float))):
+        return text  # a name (a string's, a float format's)
     # None: an optional count, or clock (--target-mhz 137.5), so a whole number first
     kinds = [int] if isinstance(default, int) else [float] if default is not None else [int, float]
     for kind in kinds:

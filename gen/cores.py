@@ -79,7 +79,7 @@ def _imm_map(params):
 
 def _ukf_driver(params):
     from .cdriver import ukf_driver
-    return ukf_driver(params.name, params.format)
+    return ukf_driver(params.name, params.format.name)
 
 
 def _ukf_documents(params):

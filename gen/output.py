@@ -16,6 +16,7 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
+from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.describe import CoreDescriptor, ParamError
 
 from .fusesoc import FlowOptions
@@ -47,10 +48,11 @@ def port_names(component) -> set[str]:
 
 def recorded(params) -> dict:
     """The parameters a core's header and manifest record: every field, less those marked
-    ``omit_none`` (:data:`kfgen.hdl.arith.float.params.OMIT_NONE`) while they are ``None``."""
-    omitted = {f.name for f in dataclasses.fields(params)
-               if f.metadata.get("omit_none") and getattr(params, f.name) is None}
-    return {k: v for k, v in dataclasses.asdict(params).items() if k not in omitted}
+    ``omit_none`` (:data:`kfgen.hdl.arith.float.params.OMIT_NONE`) while they are ``None``; a
+    float format by its name."""
+    return {f.name: value.name if isinstance(value, FloatFormat) else value
+            for f in dataclasses.fields(params) if (value := getattr(params, f.name)) is not None
+            or not f.metadata.get("omit_none")}
 
 
 def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: str = "DIR") -> str:

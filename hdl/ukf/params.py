@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, fields
 from ..arith.float.format import FloatFormat
 from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
-from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
+from ..engine.params import BINARY32, check_bus, check_div_sqrt, check_format, check_generation, check_work
 
 __all__ = ["UkfParams", "SIZE_MAX", "FORMS", "covariance_region", "default_banks"]
 
@@ -67,9 +67,10 @@ class UkfParams:
         port conflicts (fewer cycles) and a larger crossbar (its area grows with banks times
         lanes). ``None``: 2P up to P = 2, P from 3 to 8, 8 above (at P = 10, 8 banks take 3 %
         more cycles than 10 and leave the core 8,500 LUTs smaller).
-    format : str
-        Float format of every buffer word: ``binary16``, ``bfloat16``, ``binary32``,
-        ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
+    format : FloatFormat or str
+        Float format of every buffer word: a :class:`FloatFormat` or its name, ``binary16``,
+        ``bfloat16``, ``binary32``, ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by
+        the :class:`FloatFormat` (manifests and headers record its name).
     w0 : float
         Weight W_0 of the centre sigma point, 0 <= W0 < 1 (eq. 5).
     form : "ldl" or "sqrt"
@@ -120,7 +121,7 @@ class UkfParams:
     pes: int = 1
     div_sqrt: str | None = None
     banks: int | None = None
-    format: str = "binary32"
+    format: FloatFormat | str = BINARY32
     w0: float = 0.0
     form: str = "ldl"
     app: str | None = None
@@ -226,7 +227,8 @@ class UkfParams:
 
     @property
     def fmt(self) -> FloatFormat:
-        return FloatFormat.parse(self.format)
+        """:attr:`format` itself (the name the engine's modules read it by)."""
+        return self.format
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
