@@ -15,6 +15,7 @@ from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
 from ..engine.params import BINARY32, check_bus, check_div_sqrt, check_format, check_generation, check_work
+from .regmap import imm_map
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 
@@ -88,7 +89,7 @@ class ImmParams:
         check_work(2 * self.R * self.n ** 3, self.pes, "states", at_least=True)
         object.__setattr__(self, "format", check_format(self.format))
         check_bus(self)
-        from .regmap import imm_map  # checks that the map fits, and gives the width it needs
+        # the map checks that it fits, and gives the width it needs
         object.__setattr__(self, "address_width", imm_map(self).address_width)
 
     @property

@@ -5,9 +5,10 @@ from __future__ import annotations
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.app import load_app
-from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
+from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
 from .params import SIZE_MAX, UkfParams
 from .regmap import steps
+from .steps import programs
 
 __all__ = ["CORE"]
 
@@ -89,6 +90,10 @@ def _app(spec) -> dict:
     return load_app(spec).core_parameters()
 
 
+def _waivers(params) -> str:
+    return engine_waivers(params, program_units(programs(params).steps.values()))
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -98,6 +103,6 @@ CORE = CoreDescriptor(
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),
-    waivers=engine_waivers,
+    waivers=_waivers,
     app=_app,
 )

@@ -15,21 +15,14 @@ from dataclasses import dataclass, field, fields
 
 from ..arith.float.format import FloatFormat
 from ..arith.float.params import OMIT_NONE, check_target
+from ..arith.float.trig_plan import trig_plan
 from ..describe import ParamError
 from ..engine.params import BINARY32, check_bus, check_div_sqrt, check_format, check_generation, check_work
+from .forms import FORMS, covariance_region
+from .models import compile_models
+from .regmap import ukf_map
 
 __all__ = ["UkfParams", "SIZE_MAX", "FORMS", "covariance_region", "default_banks"]
-
-#: The covariance forms: ``ldl``, the chapter's (P in the buffer, factored by LDL^T each
-#: sig_gen), and ``sqrt``, the square-root form (the Cholesky factor of P in the buffer,
-#: kept by orthogonal transformations: :mod:`kfgen.hdl.ukf.programs`).
-FORMS = ("ldl", "sqrt")
-
-
-def covariance_region(form: str) -> str:
-    """The buffer region of the state's covariance in ``form``: ``P``, or ``sqrtP`` (its
-    Cholesky factor S, P = S S^T) in the square-root form."""
-    return "sqrtP" if form == "sqrt" else "P"
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
@@ -174,7 +167,6 @@ class UkfParams:
             models = self.models  # loads and traces the application, or refuses it
             used = {op[0] for model in (models.f, models.h) for op in model.ops}
             if used & {"sin", "cos", "atan2"}:
-                from ..arith.float.trig_plan import trig_plan
                 try:
                     trig_plan(self.format)
                 except ValueError as exc:
@@ -182,7 +174,7 @@ class UkfParams:
             check_work(max(M ** 3, self.m ** 3) // 6 + self.N * models.fma_count, self.pes, "states",
                        at_least=True)
         check_bus(self)
-        from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
+        # the map checks that it fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)
 
     @property
@@ -217,7 +209,6 @@ class UkfParams:
         an ``on_chip`` core; ``None`` otherwise."""
         if not self.on_chip:
             return None
-        from .models import compile_models
         return compile_models(self.app, (self.n, self.nw, self.nv, self.m))
 
     @property
