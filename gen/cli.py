@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import re
 import sys
@@ -361,7 +362,18 @@ def run(argv: list[str] | None = None) -> int:
         raise UsageError(exc.param if exc.param.startswith("-") else option(exc.param), exc.message) from None
     for target in write_files(args.output, files):
         print(target)
+    _warn_timing(files[f"{params.name}.json"])
     return 0
+
+
+def _warn_timing(manifest: str) -> None:
+    """One warning line on stderr when the manifest's ``timing`` predicts that the core misses
+    its ``--target-mhz`` (generated all the same: the prediction is a model's)."""
+    timing = json.loads(manifest).get("timing")
+    if timing and not timing["met"]:
+        print(f"kfgen: warning: --target-mhz: {timing['target_mhz']:g} MHz is above the predicted Fmax of "
+              f"{timing['predicted_fmax_mhz']:g} MHz; the core is generated (its manifest's timing: met false)",
+              file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

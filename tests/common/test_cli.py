@@ -414,3 +414,19 @@ def test_manifest(tmp_path, kwargs):
     for p in manifest["ports"]:
         rng = f"[{p['width'] - 1}:0] " if p["width"] > 1 else ""
         assert re.search(rf"^\s*{p['direction']} {re.escape(rng)}{p['name']};", verilog, re.M), p["name"]
+
+
+SMALL_UKF = ("ukf", "--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1")
+
+
+def test_unreachable_target_mhz_warns(tmp_path):
+    """A --target-mhz the delay model predicts the core misses: generated (exit 0), with one
+    warning line naming the predicted Fmax, and the manifest's met: false."""
+    proc = kfgen_in_process(*SMALL_UKF, "--target-mhz", "1000", "-o", tmp_path / "fast")
+    timing = json.loads((tmp_path / "fast" / "ukf.json").read_text())["timing"]
+    assert proc.returncode == 0 and timing["met"] is False
+    assert proc.stderr == (f"kfgen: warning: --target-mhz: 1000 MHz is above the predicted Fmax of "
+                           f"{timing['predicted_fmax_mhz']:g} MHz; the core is generated (its manifest's timing: "
+                           "met false)\n")
+    proc = kfgen_in_process(*SMALL_UKF, "--target-mhz", "50", "-o", tmp_path / "slow")
+    assert proc.returncode == 0 and proc.stderr == ""
