@@ -23,12 +23,15 @@ __all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS"
 
 class ParamError(ValueError):
     """A bad parameter: ``param`` names it (a dataclass field, or a command-line option),
-    ``message`` says what is allowed. The one error type of every parameter check."""
+    ``message`` says what is allowed, and ``source`` (optional) where the bad value came from
+    when the caller did not give it (``app nanosat:Nanosat``: the application fixed it). The
+    one error type of every parameter check."""
 
-    def __init__(self, param: str, message: str):
-        super().__init__(f"{param}: {message}")
+    def __init__(self, param: str, message: str, source: str | None = None):
+        super().__init__(f"{param}: {message}" + (f" (from {source})" if source else ""))
         self.param = param
         self.message = message
+        self.source = source
 
 
 @dataclass(frozen=True)

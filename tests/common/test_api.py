@@ -83,3 +83,26 @@ def test_the_core_loads_its_application_itself():
             "print(p.models.fma_count > 0, hasattr(m, 'set_loader'), 'kfgen.gen.cores' in sys.modules)")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert proc.stdout.split() == ["True", "False", "False"]
+
+
+def test_an_application_sizes_the_core_as_on_the_command_line(tmp_path):
+    """``generate_core("ukf", app=..., on_chip=True)`` takes the application's sizes first, as
+    ``kfgen ukf --app ... --on-chip`` does (the command line generates through this API): the
+    same files; a value given beside ``app`` wins, and one the application fixed that the core
+    refuses names the application."""
+    made = generate_core("ukf", app="tracker:Tracker", on_chip=True, name="trk")
+    assert made.manifest["sizes"] == {"n": 4, "m": 2, "nw": 2, "nv": 2, "M": 8, "N": 10}
+    kfgen("ukf", "--app", "tracker:Tracker", "--on-chip", "--name", "trk", "-o", tmp_path / "cli")
+    assert {p.name: p.read_text() for p in (tmp_path / "cli").iterdir()} == dict(made.files)
+    from kfgen.gen.api import params_for
+
+    assert params_for("ukf", app="tracker:Tracker", process_noise=3).nw == 3
+    (tmp_path / "huge.py").write_text("import numpy as np\nfrom kfgen.sim.ukf.app import UkfApplication\n"
+                                      "class Huge(UkfApplication):\n    n, nw, nv, m, dt = 300, 1, 1, 1, 1.0\n"
+                                      "    x0, P0, Q, R = np.zeros(300), np.eye(300), [[1.0]], [[1.0]]\n")
+    spec = f"{tmp_path / 'huge.py'}:Huge"
+    with pytest.raises(ParamError) as exc:
+        params_for("ukf", app=spec)
+    assert (exc.value.param, exc.value.source) == ("states", f"app {spec}")
+    with pytest.raises(ParamError, match="^app: cannot import"):
+        params_for("ukf", app="kfgen_no_such_module:App")
