@@ -6,7 +6,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.app import load_app
 from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
-from .params import SIZE_MAX, UkfParams
+from .params import FLOOR_REASON, SIZE_MAX, UkfParams
 from .regmap import steps
 from .steps import programs
 
@@ -28,7 +28,7 @@ def _docs() -> dict[str, Doc]:
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
         "banks": Doc("dual-port banks of the operand memory: more banks, fewer port conflicts and a larger "
                      "crossbar; by default 2P up to P = 2, P from 3 to 8, 8 above", "", "an integer in 2..2M"),
-        "format": engine_docs()["format"],
+        "format": Doc(engine_docs()["format"].meaning, "", f"{engine_docs()['format'].allowed}; {FLOOR_REASON}"),
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
         "form": Doc("the covariance's form: ldl, the chapter's (P in the buffer, factored by LDL^T every sig_gen), "
                     "or sqrt, the square-root form (a Cholesky factor S of P = S S^T in region sqrtP, updated by "

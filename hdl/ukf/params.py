@@ -22,10 +22,21 @@ from .forms import FORMS, covariance_region
 from .models import compile_models
 from .regmap import ukf_map
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMS", "covariance_region", "default_banks"]
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_FLOOR", "FLOOR_REASON", "FORMS", "covariance_region", "default_banks"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
+
+#: The narrowest format the filter works in: at least 5 exponent bits and 4 fraction bits.
+#: Measured with the golden model (tests/common/test_format_floor.py): the mildest application
+#: (docs/examples/pendulum.py, Q = 1e-4 I) tracks at e5m4 within 1.25 times float64's error,
+#: and faults (err_pivot, first sig_gen) at e4m10 (Q's entries below 4 exponent bits' normal
+#: range) and at e5m3 and e8m3 (LDL^T's pivots round to zero). The shipped applications need
+#: more (the tracker e6m10, the nanosatellite e6m17).
+FORMAT_FLOOR = (5, 4)
+FLOOR_REASON = (f"at least {FORMAT_FLOOR[0]} exponent and {FORMAT_FLOOR[1]} fraction bits: below them the "
+                "first sig_gen's LDL^T pivots underflow or round to zero (err_pivot) for every application "
+                "measured (the golden model, tests/common/test_format_floor.py; docs/ukf.md)")
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
@@ -173,6 +184,9 @@ class UkfParams:
                     raise ParamError("format", str(exc)) from None
             check_work(max(M ** 3, self.m ** 3) // 6 + self.N * models.fma_count, self.pes, "states",
                        at_least=True)
+        fmt = self.format
+        if fmt.exp_bits < FORMAT_FLOOR[0] or fmt.frac_bits < FORMAT_FLOOR[1]:
+            raise ParamError("format", f"{fmt.name} is too narrow for the filter to work; it needs {FLOOR_REASON}")
         check_bus(self)
         # the map checks that it fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)

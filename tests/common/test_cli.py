@@ -430,3 +430,19 @@ def test_unreachable_target_mhz_warns(tmp_path):
                            "met false)\n")
     proc = kfgen_in_process(*SMALL_UKF, "--target-mhz", "50", "-o", tmp_path / "slow")
     assert proc.returncode == 0 and proc.stderr == ""
+
+
+@pytest.mark.parametrize("fmt", ["e3m2", "e4m10", "e8m3"])
+def test_ukf_format_below_the_floor_exits_2(tmp_path, fmt):
+    """A format too narrow for the filter (kfgen.hdl.ukf.params.FORMAT_FLOOR): one line, exit 2,
+    nothing written; --help states the floor and its reason."""
+    proc = kfgen_in_process("ukf", "--format", fmt, "-o", tmp_path / "x")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"kfgen: error: --format: {fmt} is too narrow for the filter to work; it needs "
+                                  "at least 5 exponent and 4 fraction bits")
+    assert not (tmp_path / "x").exists()
+
+
+def test_ukf_help_states_the_format_floor():
+    text = " ".join(kfgen("ukf", "--help").stdout.split())
+    assert "at least 5 exponent and 4 fraction bits: below them" in text and "test_format_floor.py" in text
