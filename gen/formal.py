@@ -210,7 +210,6 @@ def _ukf_streams(mutated, count=True):
     from ..hdl.ukf.params import UkfParams
     from ..hdl.ukf.regmap import ukf_map
     from ..hdl.ukf.steps import programs
-    from ..sim.ukf import app  # noqa: F401 (the application loader the on-chip parameters use)
     params = UkfParams(4, 2, 2, 2, app="tracker:Tracker", on_chip=True, streams=True)
     progs = programs(params)
     return formal.EngineStreamHarness(

@@ -157,11 +157,13 @@ def _positive_definite(what: str, a: np.ndarray) -> None:
 
 
 def one_line(text) -> str:
+    """``text`` (a user's exception, say) on one line, for an error message."""
     return " ".join(str(text).split())
 
 
 #: Where the applications shipped with kfgen live: ``nanosat:Nanosat`` is short for
 #: ``kfgen.sim.ukf.apps.nanosat:Nanosat`` unless a module ``nanosat`` of the user's imports.
+#: Named, not imported: like a user's module, it is imported only when a spec names it.
 SHIPPED = "kfgen.sim.ukf.apps"
 
 
