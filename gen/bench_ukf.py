@@ -45,7 +45,7 @@ from kfgen.hdl.engine.params import GEN_PES_MAX
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.toolchain import ToolMissing
-from kfgen.sim.ukf.app import load_app
+from kfgen.hdl.engine.app import load_app
 
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.ukf.run import TB, run_cosim

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import re
 import sys
@@ -31,6 +32,7 @@ from pathlib import Path
 from kfgen.hdl.describe import CoreDescriptor, Doc, ParamError
 
 from . import __version__
+from .api import generate_core, params_for
 from .cores import discover
 from .fusesoc import FlowOptions
 from .output import NAME_MAX, check_name_fits, check_output, generate, option, write_files
@@ -224,8 +226,8 @@ def _convert(text: str, default):
     """A command-line string as the type of the field's default; text that is not one is
     passed on as it is, so that the parameter class's own check (one message shape per
     parameter, with its range) rejects it."""
-    if isinstance(default, str):
-        return text
+    if default is not None and (isinstance(default, bool) or not isinstance(default, (int, float))):
+        return text  # a name (a string's, a float format's)
     # None: an optional count, or clock (--target-mhz 137.5), so a whole number first
     kinds = [int] if isinstance(default, int) else [float] if default is not None else [int, float]
     for kind in kinds:
@@ -237,28 +239,18 @@ def _convert(text: str, default):
 
 
 def _params(core: CoreDescriptor, args: argparse.Namespace):
-    params_cls = core.params
-    defaults = _defaults(params_cls)
-    values, source = dict(defaults), {}
-    config = {} if args.config is None else _read_config(args.config, defaults)
-    spec = getattr(args, "app", None)
-    where = f"--app {spec}"
-    if spec is None and isinstance(config.get("app"), str) and core.app is not None:
-        spec, where = config.pop("app"), f"{args.config} (app)"  # the same as --app, from the file
-    if spec is not None:
-        try:
-            from_app = core.app(spec)
-        except ValueError as exc:
-            raise UsageError("--app", _one_line(exc) + ("" if where.startswith("--app") else f" (from {where})")) \
-                from None
-        for k, v in from_app.items():
-            values[k], source[k] = v, where
-        if "app" in defaults:
-            values["app"], source["app"] = spec, where
-    for k, v in config.items():
-        if k == "app" and core.app is not None and spec is not None and args.app is not None:
-            continue  # --app on the command line wins over the file's
+    """The parameters of ``args``: ``--config``'s values, then the options, given to the Python
+    API (:func:`kfgen.gen.api.params_for`), which takes an ``--app``'s (or the file's ``app``)
+    values first; an error names the option and where a value it did not take came from."""
+    defaults = _defaults(core.params)
+    values, source = {}, {}
+    for k, v in ({} if args.config is None else _read_config(args.config, defaults)).items():
         values[k], source[k] = v, args.config
+    if "app" in source and core.app is not None:
+        source["app"] = f"{args.config} (app)"
+    if getattr(args, "app", None) is not None:  # --app on the command line wins over the file's
+        values["app"] = args.app
+        source.pop("app", None)
     for field in defaults:
         if field == "app" and core.app is not None:
             continue  # --app, set above
@@ -268,11 +260,14 @@ def _params(core: CoreDescriptor, args: argparse.Namespace):
                 else _convert(text, defaults[field])
             source.pop(field, None)
     try:
-        return params_cls(**values)
+        return params_for(core.name, **values)
     except ValueError as exc:  # ParamError is a ValueError; so is anything else it rejects
         field = str(getattr(exc, "param", "parameters")).replace("-", "_")
-        message = str(exc).split(": ", 1)[1] if hasattr(exc, "param") else str(exc)
-        where = f" (from {source[field]})" if field in source else ""
+        message = exc.message if hasattr(exc, "param") else str(exc)
+        if getattr(exc, "source", None) is not None:  # a value the application fixed
+            where = " (from " + source.get("app", f"--app {values['app']}") + ")"
+        else:
+            where = f" (from {source[field]})" if field in source else ""
         name = field if field not in defaults else "--no-" + option(field)[2:] if _switch(defaults[field]) \
             else option(field)
         raise UsageError(name, _one_line(message) + where) from None
@@ -356,12 +351,23 @@ def run(argv: list[str] | None = None) -> int:
     try:
         check_name_fits(params.name)
         check_output(args.output)
-        files = generate(core, params, flow)
+        files = generate_core(core.name, params, flow=flow).files
     except ParamError as exc:
         raise UsageError(exc.param if exc.param.startswith("-") else option(exc.param), exc.message) from None
     for target in write_files(args.output, files):
         print(target)
+    _warn_timing(files[f"{params.name}.json"])
     return 0
+
+
+def _warn_timing(manifest: str) -> None:
+    """One warning line on stderr when the manifest's ``timing`` predicts that the core misses
+    its ``--target-mhz`` (generated all the same: the prediction is a model's)."""
+    timing = json.loads(manifest).get("timing")
+    if timing and not timing["met"]:
+        print(f"kfgen: warning: --target-mhz: {timing['target_mhz']:g} MHz is above the predicted Fmax of "
+              f"{timing['predicted_fmax_mhz']:g} MHz; the core is generated (its manifest's timing: met false)",
+              file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,7 +1,7 @@
 """Finds the cores: every ``descriptor`` module under :mod:`kfgen.hdl` that defines ``CORE``,
 and binds to each what lives above ``hdl`` (which imports neither ``gen`` nor ``sim``): its
-bench module, its smoke-test plan, its application loader, the documents and manifest entries
-made from its register map.
+bench module, its smoke-test plan, the documents and manifest entries made from its register
+map.
 
 The command line, the manifest writer, ``make verilog`` (:mod:`kfgen.gen.examples`) and
 ``make bench`` (:mod:`kfgen.gen.bench`) all take their list of cores from :func:`discover`,
@@ -79,7 +79,7 @@ def _imm_map(params):
 
 def _ukf_driver(params):
     from .cdriver import ukf_driver
-    return ukf_driver(params.name, params.format)
+    return ukf_driver(params.name, params.format.name)
 
 
 def _ukf_documents(params):
@@ -115,49 +115,28 @@ def _ukf_documents(params):
     return docs
 
 
-def _load_app(spec):
-    # The application is the user's Python (kfgen.sim.ukf.app), loaded only when asked for.
-    from kfgen.sim.ukf.app import load_app
-    return load_app(spec)
-
-
-def _ukf_app(spec):
-    return _load_app(spec).core_parameters()
-
-
-def _ukf_loader():
-    """hdl traces an application's f and h through a loader handed in: every process that binds
-    the UKF core (the command line, a bench's workers) can then generate an ``--app`` core."""
-    from kfgen.hdl.ukf.models import set_loader
-    set_loader(_load_app)
-
-
 #: Per core: descriptor fields bound here, or (for ``extra``) a wrapper of the descriptor's own.
 _HOOKS = {
     "castella": {"bench": "kfgen.gen.bench_castella", "smoke": _smoke("kfgen.sim.castella.smoke")},
     "fpu": {"bench": "kfgen.gen.bench_fpu", "smoke": _smoke("kfgen.sim.fpu.smoke")},
     "schur": {"bench": "kfgen.gen.bench_schur", "smoke": _smoke("kfgen.sim.schur.smoke")},
-    "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads, "app": _ukf_app,
+    "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads,
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map), "extra": _with_map},
 }
 
-#: Per core: what binding it also sets up in this process.
-_SETUP = {"ukf": _ukf_loader}
-
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor
 
 
 def bind(core: CoreDescriptor) -> CoreDescriptor:
-    """``core`` (a descriptor as ``hdl`` declares it) with its hooks of :data:`_HOOKS` (and what
-    :data:`_SETUP` sets up); a bound descriptor is returned as it is."""
+    """``core`` (a descriptor as ``hdl`` declares it) with its hooks of :data:`_HOOKS`; a bound
+    descriptor is returned as it is."""
     if _BOUND.get(core.name) is core:
         return core
     hooks = dict(_HOOKS.get(core.name, {}))
     if "extra" in hooks:
         hooks["extra"] = hooks["extra"](core.extra)
     bound = dataclasses.replace(core, **hooks)
-    _SETUP.get(core.name, lambda: None)()
     _BOUND[core.name] = bound
     return bound

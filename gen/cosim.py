@@ -103,7 +103,7 @@ def ukf(argv) -> int:
             on_chip = {"app": spec, "on_chip": True} if args.on_chip else {}
             params = UkfParams(**app.core_parameters(), pes=args.pes, format=args.format, form=args.form,
                                name="ukf_app", **on_chip)
-            if args.processor == "c" and params.format not in C_FORMATS:
+            if args.processor == "c" and params.format.name not in C_FORMATS:
                 raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "
                                  f"not {params.format} (use --processor python)")
             scenario = checked_scenario(app, args.steps, args.seed)

@@ -44,7 +44,6 @@ from ..hdl.ukf.core import prologue, stream_spec
 from ..hdl.ukf.params import UkfParams
 from ..hdl.ukf.regmap import ukf_map
 from ..hdl.ukf.steps import programs
-from ..sim.ukf import app  # noqa: F401 (the application loader the on-chip parameters use)
 
 __all__ = ["Proof", "Mutant", "Result", "proofs", "mutants", "mutated", "run", "main"]
 

@@ -18,6 +18,8 @@ from pathlib import Path
 
 from amaranth.hdl import Fragment
 
+from kfgen.hdl.arith.float.format import FloatFormat
+from kfgen.hdl.engine.app import recorded_spec
 from kfgen.hdl.describe import CoreDescriptor, ParamError
 
 from .cores import bind
@@ -53,10 +55,20 @@ def port_names(component) -> set[str]:
 
 def recorded(params) -> dict:
     """The parameters a core's header and manifest record: every field, less those marked
-    ``omit_none`` (:data:`kfgen.hdl.arith.float.params.OMIT_NONE`) while they are ``None``."""
-    omitted = {f.name for f in dataclasses.fields(params)
-               if f.metadata.get("omit_none") and getattr(params, f.name) is None}
-    return {k: v for k, v in dataclasses.asdict(params).items() if k not in omitted}
+    ``omit_none`` (:data:`kfgen.hdl.arith.float.params.OMIT_NONE`) while they are ``None``; a
+    float format by its name."""
+    return {f.name: _recorded(f.name, value) for f in dataclasses.fields(params)
+            if (value := getattr(params, f.name)) is not None or not f.metadata.get("omit_none")}
+
+
+def _recorded(name: str, value):
+    """A parameter's value as generated files write it: a float format by its name, an
+    application's file by its name alone (:func:`kfgen.hdl.engine.app.recorded_spec`)."""
+    if isinstance(value, FloatFormat):
+        return value.name
+    if name == "app" and isinstance(value, str):
+        return recorded_spec(value)
+    return value
 
 
 def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: str = "DIR") -> str:
@@ -72,7 +84,7 @@ def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: 
         elif f.default is False:  # a switch: --<name>
             parts.append(option(f.name))
         else:
-            parts += [option(f.name), str(value)]
+            parts += [option(f.name), str(_recorded(f.name, value))]
     if flow is not None:
         for f in dataclasses.fields(flow):
             value = getattr(flow, f.name)

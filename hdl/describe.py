@@ -12,21 +12,26 @@ Pure Python: no Amaranth import, so the parameter modules stay light.
 
 from __future__ import annotations
 
+import functools
 import re
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-__all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS"]
+__all__ = ["ParamError", "Doc", "CoreDescriptor", "check_name", "RESERVED_WORDS", "once_per_params"]
 
 
 class ParamError(ValueError):
     """A bad parameter: ``param`` names it (a dataclass field, or a command-line option),
-    ``message`` says what is allowed. The one error type of every parameter check."""
+    ``message`` says what is allowed, and ``source`` (optional) where the bad value came from
+    when the caller did not give it (``app nanosat:Nanosat``: the application fixed it). The
+    one error type of every parameter check."""
 
-    def __init__(self, param: str, message: str):
-        super().__init__(f"{param}: {message}")
+    def __init__(self, param: str, message: str, source: str | None = None):
+        super().__init__(f"{param}: {message}" + (f" (from {source})" if source else ""))
         self.param = param
         self.message = message
+        self.source = source
 
 
 @dataclass(frozen=True)
@@ -83,7 +88,7 @@ class CoreDescriptor:
     A parameter whose default is ``True`` is a switch: the command line offers
     ``--no-<name>`` to turn it off.
 
-    ``bench``, ``documents``, ``app`` and ``smoke`` reach into ``gen`` and ``sim``, which
+    ``bench``, ``documents`` and ``smoke`` reach into ``gen`` and ``sim``, which
     ``hdl`` never imports: a descriptor leaves them out and :func:`kfgen.gen.cores.bind` fills
     them in (with the register map's manifest entries added to ``extra``).
     """
@@ -101,6 +106,32 @@ class CoreDescriptor:
     waivers: Callable = lambda params: ""
     app: Callable | None = None
     smoke: Callable | None = None
+
+
+_BUILT: dict[int, dict] = {}  # id(params) -> {function: what it built}, while the object lives
+
+
+def once_per_params(build: Callable) -> Callable:
+    """``build(params)`` built once per parameter object and reused (a core's register map,
+    programs and machine): one generation builds each once, whoever asks for it (the
+    parameters' own validation, the component, the manifest, the documents).
+
+    Kept by the object's identity, not its value: a parameter object is frozen once
+    validated, and validation may ask while it fills in the last derived field (the map's
+    address width, which the map it builds already has). What was built is dropped with the
+    object, and never pickled with it.
+    """
+    @functools.wraps(build)
+    def built(params):
+        key = id(params)
+        memo = _BUILT.get(key)
+        if memo is None:
+            memo = _BUILT[key] = {}
+            weakref.finalize(params, _BUILT.pop, key, None)
+        if build not in memo:
+            memo[build] = build(params)
+        return memo[build]
+    return built
 
 
 #: Verilog-2005 (IEEE 1364-2005 Annex B) and SystemVerilog (IEEE 1800-2017 Annex B) keywords:

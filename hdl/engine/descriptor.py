@@ -8,7 +8,8 @@ from ..describe import Doc
 from ..linalg import isa
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
 
-__all__ = ["engine_docs", "engine_waivers", "engine_manifest", "CYCLES_DEFINITION"]
+__all__ = ["engine_docs", "engine_waivers", "engine_manifest", "engine_timing", "program_units", "units_used",
+           "CYCLES_DEFINITION"]
 
 #: The manifest's ``cycles_definition``: what a step's cycle count counts.
 CYCLES_DEFINITION = ("clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
@@ -38,9 +39,15 @@ def engine_docs() -> dict[str, Doc]:
     }
 
 
+def program_units(programs) -> set[str]:
+    """The engine units that ``programs`` (an iterable of
+    :class:`~kfgen.hdl.linalg.program.Program`) use: an optional unit is built only then."""
+    return {op.unit for prog in programs for op in prog.ops}
+
+
 def units_used(core) -> set[str]:
-    """The engine units that ``core``'s programs use (an optional unit is built only then)."""
-    return {op.unit for s in core.schedules.values() for op in s.program.ops}
+    """The engine units that ``core``'s programs use."""
+    return program_units(s.program for s in core.schedules.values())
 
 
 def engine_timing(params, core) -> dict:
@@ -51,10 +58,10 @@ def engine_timing(params, core) -> dict:
     return {"timing": timing(params, machine(params), units_used(core))}
 
 
-def engine_waivers(params) -> str:
+def engine_waivers(params, units=()) -> str:
     """The AXI front end's waivers, with a format narrower than the bus word the unused
-    high bits of a buffer write, and in the UKF's square-root form the bits CopySign does not
-    read."""
+    high bits of a buffer write, and when ``units`` (the units the core's programs use,
+    :func:`program_units`; none by default) hold the CopySign unit the bits it does not read."""
     from ..bus.axi4 import lint_waivers  # Amaranth, only when generating
     text = lint_waivers(params.name)
     width = params.fmt.width
@@ -63,7 +70,7 @@ def engine_waivers(params) -> str:
                  f"// ignores the high bits (a read returns them as 0).\n"
                  f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
                  f"-match \"Bits of signal are not used: 'back_bus__w_data'?31:{width}?\"\n")
-    if getattr(params, "form", "ldl") == "sqrt":  # the engine's CopySign unit (the square-root form)
+    if "copysign" in units:
         text += (f"\n// CopySign takes the magnitude bits of its first operand and the sign bit of its second.\n"
                  f"lint_off -rule UNUSEDSIGNAL -file \"*{params.name}.v\" "
                  f"-match \"Bits of signal are not used: 'engine_copysign_rd__0__data'?{width - 1}?\"\n"

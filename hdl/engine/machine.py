@@ -9,6 +9,7 @@ from ..arith.float.exp import FloatExp
 from ..arith.float.fma import FloatFMA
 from ..arith.float.sqrt import FloatSqrt
 from ..arith.float.trig import FloatAtan2, FloatCos, FloatSin
+from ..describe import once_per_params
 from ..linalg.schedule import Machine, schedule
 
 __all__ = ["machine", "schedules", "timing", "engine_mhz", "ENGINE_MHZ", "FETCHED_MHZ"]
@@ -35,11 +36,10 @@ def engine_mhz(mc: Machine) -> float:
 
 def _target_stages(params, op: str, per_op: int, default):
     """The stages of ``op``'s unit for the core's ``target_mhz`` (``default`` without one)."""
-    target = getattr(params, "target_mhz", None)
-    if target is None:
+    if params.target_mhz is None:
         return default
     from ..arith.float.params import unit_timing
-    return unit_timing(op, params.fmt, "ieee", per_op, target)[0]
+    return unit_timing(op, params.fmt, "ieee", per_op, params.target_mhz)[0]
 
 
 def timing(params, mc: Machine, used) -> dict:
@@ -68,14 +68,16 @@ def _sqrt_stages(fmt, per_op):
                default=unit.stages)
 
 
+@once_per_params
 def machine(params) -> Machine:
     """P processing elements (the FMA's default pipeline), ``params.banks`` memory banks, and
     the divider and square root of ``params.div_sqrt``: iterative (one result bit a cycle: an
     operation every :meth:`~kfgen.hdl.arith.float.div.FloatDiv.iterations` cycles) or
     pipelined (the square root with its rounding's select registered); the exponential at its
     default pipeline and the iterative sin, cos and atan2 (a core builds them only when its
-    programs use them). A core's ``target_mhz`` (if it has one set) picks the FMA's, divider's,
-    square root's and exponential's stages instead (:func:`timing`)."""
+    programs use them). A core's ``target_mhz`` (when set) picks the FMA's, divider's,
+    square root's and exponential's stages instead (:func:`timing`). Built once per
+    parameter object."""
     fmt = params.fmt
     per_op = {cls: cls.iterations(fmt) if params.div_sqrt == "iterative" else 1 for cls in (FloatDiv, FloatSqrt)}
     div = FloatDiv.plan(fmt, cycles_per_op=per_op[FloatDiv],
@@ -91,7 +93,7 @@ def machine(params) -> Machine:
         trig |= {f"{name}_latency": plan.latency, f"{name}_interval": plan.initiation_interval}
     fma = FloatFMA.plan(fmt, stages=_target_stages(params, "fma", 1, None))
     exp = FloatExp.plan(fmt, stages=_target_stages(params, "exp", 1, None))
-    target = getattr(params, "target_mhz", None)
+    target = params.target_mhz
     return Machine(params.pes, fma.latency, div.latency, sqrt.latency, banks=params.banks,
                    div_interval=div.initiation_interval, sqrt_interval=sqrt.initiation_interval,
                    exp_latency=exp.latency, fetch_register=int(target is not None and target > ENGINE_MHZ), **trig)

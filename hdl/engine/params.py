@@ -7,13 +7,15 @@ float format of the buffer, the divider and square root, and the bus (``irq``,
 
 from __future__ import annotations
 
-from ..arith.float.format import FloatFormat
+from ..arith.float.format import PRESETS, FloatFormat
 from ..describe import ParamError, check_name
 
-__all__ = ["FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "GEN_PES_MAX", "GEN_CROSSBAR_MAX",
+__all__ = ["BINARY32", "FORMAT_WIDTH_MAX", "ADDRESS_WIDTH_MAX", "DIV_SQRT", "GEN_PES_MAX", "GEN_CROSSBAR_MAX",
            "GEN_WORK_MAX", "GEN_WORK_PES", "WORK_RULE", "generation_work", "check_div_sqrt", "check_format", "check_bus",
            "check_generation", "check_work"]
 
+#: The engine cores' default format.
+BINARY32 = PRESETS["binary32"]
 #: Widest float format: one element is at most two 32-bit bus words.
 FORMAT_WIDTH_MAX = 64
 #: Widest AXI address the core accepts (a 32-bit processor's address space).
@@ -87,8 +89,9 @@ def check_div_sqrt(value, pes: int) -> str:
     return kind
 
 
-def check_format(value) -> str:
-    """The float format of an engine core's buffer, by its name: at most two bus words."""
+def check_format(value) -> FloatFormat:
+    """The float format of an engine core's buffer (a :class:`FloatFormat`, or its name in
+    any case): at most two bus words. The one value the parameters keep."""
     try:
         fmt = FloatFormat.parse(value)
     except ValueError as exc:
@@ -96,7 +99,7 @@ def check_format(value) -> str:
     if fmt.width > FORMAT_WIDTH_MAX:
         raise ParamError("format", f"{fmt.name} is {fmt.width} bits wide; the buffer holds formats of at "
                                    f"most {FORMAT_WIDTH_MAX} bits (two bus words)")
-    return fmt.name
+    return fmt
 
 
 def check_bus(params) -> None:

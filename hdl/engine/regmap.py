@@ -58,6 +58,7 @@ from typing import NamedTuple
 from ..describe import ParamError
 
 __all__ = ["Value", "Field", "Register", "Memory", "Decoded", "RegisterMap", "place_map", "status_registers",
+           "Identity", "engine_registers",
            "BUS_DATA_WIDTH", "BUS_ID_WIDTH", "FIELD_ACCESS", "BLOCK_ACCESS",
            "REGION_ROLES"]
 
@@ -288,6 +289,70 @@ def status_registers(events, what: str, irq: bool) -> list[Register]:
             "level, high until the event bits are cleared.",
             tuple(Field(name, lsb, 1, "rw", f"irq on STATUS.{name}") for name, lsb, _ in events)))
     return regs
+
+
+@dataclass(frozen=True)
+class Identity:
+    """What a core on the engine declares about itself for the registers every such core
+    has (:func:`engine_registers`): the rest of ID and CTRL is the engine's.
+
+    Parameters
+    ----------
+    core : int
+        ID.core, an ASCII letter (``0x55``, 'U').
+    title : str
+        The core as ID.core's description names it (``the UKF``).
+    version : int
+        ID.version of this configuration's map.
+    sizes : tuple of (name, meaning, value)
+        ID's 8-bit size fields from bit 32, in order (the UKF's n, nw, nv, m).
+    work : str
+        What one start runs (``step``, ``iteration``), in CTRL's and STATUS's descriptions.
+    start : str
+        CTRL.start's description.
+    events : tuple of (name, lsb, desc)
+        STATUS's w1c event bits (:func:`status_registers`).
+    step : Field or None
+        CTRL.step, for a core with several steps.
+    """
+
+    core: int
+    title: str
+    version: int
+    sizes: tuple[tuple[str, str, int], ...]
+    work: str
+    start: str
+    events: tuple[tuple[str, int, str], ...]
+    step: Field | None = None
+
+
+def engine_registers(identity: Identity, params) -> tuple[Register, ...]:
+    """ID (64 bits: the core, the map's version, the format, P and the core's sizes), CTRL
+    (start, reset and the core's step field), STATUS and with ``params.irq`` IRQ_ENABLE of an
+    engine core that declares ``identity``."""
+    fmt, work = params.fmt, identity.work
+    article = "an" if work[0] in "aeiou" else "a"
+    return (
+        Register("ID", 0x0, 64, "What the core is and how it was generated, so software can discover its "
+                 "configuration. Two bus words, low word first.", (
+                     Field("core", 0, 8, "ro", f"core identifier, {identity.core:#04x} ({chr(identity.core)!r}) "
+                           f"for {identity.title}", reset=identity.core),
+                     Field("version", 8, 4, "ro", "version of this register and memory map", reset=identity.version),
+                     Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
+                     Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
+                           reset=fmt.frac_bits),
+                     Field("pes", 22, 10, "ro", "processing elements P", reset=params.pes),
+                     *(Field(name, 32 + 8 * i, 8, "ro", meaning, reset=value)
+                       for i, (name, meaning, value) in enumerate(identity.sizes)),
+                 )),
+        Register("CTRL", 0x8, 32, f"Starts {article} {work}, or resets the core to idle.", (
+            Field("start", 0, 1, "w1p", identity.start),
+            Field("reset", 1, 1, "w1p", f"write 1 for a soft reset: a running {work} stops, the core is idle, "
+                                        "STATUS is cleared; the buffer is kept"),
+            *((identity.step,) if identity.step is not None else ()),
+        )),
+        *status_registers(identity.events, work, params.irq),
+    )
 
 
 def place_map(registers, regions, fmt, address_width=None) -> RegisterMap:

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
-from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
+from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
 from ..linalg.schedule import chain_bound
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
 from .regmap import CYCLES
+from .steps import programs
 
 __all__ = ["CORE"]
 
@@ -48,6 +49,10 @@ def _extra(params, core) -> dict:
     }
 
 
+def _waivers(params) -> str:
+    return engine_waivers(params, program_units(programs(params).steps.values()))
+
+
 CORE = CoreDescriptor(
     name="imm",
     summary="interacting multiple model filter (R Kalman filters, mixing and combination) on P float PEs "
@@ -58,5 +63,5 @@ CORE = CoreDescriptor(
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),
-    waivers=engine_waivers,
+    waivers=_waivers,
 )

@@ -14,7 +14,8 @@ from ..arith.float.format import FloatFormat
 from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
 from ..schur.program import SIZE_MAX as D_MAX
-from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
+from ..engine.params import BINARY32, check_bus, check_div_sqrt, check_format, check_generation, check_work
+from .regmap import imm_map
 
 __all__ = ["ImmParams", "MODELS_MAX", "STATES_MAX", "D_MAX", "PES_MAX"]
 
@@ -43,8 +44,9 @@ class ImmParams:
         ``iterative`` or ``pipelined`` divider and square root; ``None``: iterative at P = 1.
     banks : int or None
         Dual-port banks of the operand memory; ``None``: 2P.
-    format : str
-        Float format of the buffer and the arithmetic.
+    format : FloatFormat or str
+        Float format of the buffer and the arithmetic (a name is replaced by the
+        :class:`FloatFormat`).
     irq : bool
     address_width : int or None
         AXI byte-address width; ``None``: the smallest that holds the map.
@@ -61,7 +63,7 @@ class ImmParams:
     pes: int = 1
     div_sqrt: str | None = None
     banks: int | None = None
-    format: str = "binary32"
+    format: FloatFormat | str = BINARY32
     irq: bool = True
     address_width: int | None = None
     target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
@@ -87,7 +89,7 @@ class ImmParams:
         check_work(2 * self.R * self.n ** 3, self.pes, "states", at_least=True)
         object.__setattr__(self, "format", check_format(self.format))
         check_bus(self)
-        from .regmap import imm_map  # checks that the map fits, and gives the width it needs
+        # the map checks that it fits, and gives the width it needs
         object.__setattr__(self, "address_width", imm_map(self).address_width)
 
     @property
@@ -104,7 +106,8 @@ class ImmParams:
 
     @property
     def fmt(self) -> FloatFormat:
-        return FloatFormat.parse(self.format)
+        """:attr:`format` itself (the name the engine's modules read it by)."""
+        return self.format
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -10,9 +10,10 @@ iteration: mixing, the R Kalman filters and the combination (:mod:`kfgen.hdl.imm
 
 from __future__ import annotations
 
-from ..engine.regmap import Field, Register, RegisterMap, place_map, status_registers
+from ..describe import once_per_params
+from ..engine.regmap import Identity, RegisterMap, engine_registers, place_map
 
-__all__ = ["imm_map", "regions", "CORE_ID", "MAP_VERSION", "CYCLES"]
+__all__ = ["imm_map", "identity", "regions", "CORE_ID", "MAP_VERSION", "CYCLES"]
 
 #: ID.core of the IMM (ASCII 'I').
 CORE_ID = 0x49
@@ -29,30 +30,15 @@ EVENTS = (
 )
 
 
-def _registers(params) -> tuple[Register, ...]:
-    fmt = params.fmt
-    regs = [
-        Register("ID", 0x0, 64, "What the core is and how it was generated, so software can discover its "
-                 "configuration. Two bus words, low word first.", (
-                     Field("core", 0, 8, "ro", f"core identifier, {CORE_ID:#04x} ('I') for the IMM", reset=CORE_ID),
-                     Field("version", 8, 4, "ro", "version of this register and memory map", reset=MAP_VERSION),
-                     Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
-                     Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
-                           reset=fmt.frac_bits),
-                     Field("pes", 22, 10, "ro", "processing elements P", reset=params.pes),
-                     Field("models", 32, 8, "ro", "models R", reset=params.R),
-                     Field("n", 40, 8, "ro", "states n of every model", reset=params.n),
-                     Field("d", 48, 8, "ro", "measurements d", reset=params.d),
-                 )),
-        Register("CTRL", 0x8, 32, "Starts an iteration, or resets the core to idle.", (
-            Field("start", 0, 1, "w1p", "write 1 to run one IMM iteration (mixing, the R filters, the "
-                                        "combination); refused while busy (STATUS.err_busy)"),
-            Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running iteration stops, the core is "
-                                        "idle, STATUS is cleared; the buffer is kept"),
-        )),
-        *status_registers(EVENTS, "iteration", params.irq),
-    ]
-    return tuple(regs)
+def identity(params) -> Identity:
+    """What the IMM declares for the engine's ID, CTRL and STATUS registers: one start runs an
+    iteration."""
+    return Identity(
+        CORE_ID, "the IMM", MAP_VERSION,
+        (("models", "models R", params.R), ("n", "states n of every model", params.n),
+         ("d", "measurements d", params.d)),
+        "iteration", "write 1 to run one IMM iteration (mixing, the R filters, the combination); refused while "
+                     "busy (STATUS.err_busy)", EVENTS)
 
 
 def regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
@@ -97,13 +83,15 @@ CYCLES = {
 }
 
 
+@once_per_params
 def imm_map(params) -> RegisterMap:
     """The register and memory map of an IMM core with parameters ``params`` (a
-    :class:`kfgen.hdl.imm.params.ImmParams`).
+    :class:`kfgen.hdl.imm.params.ImmParams`), built once per parameter object.
 
     Raises
     ------
     ParamError
         ``address_width`` when ``params.address_width`` is too narrow for the map.
     """
-    return place_map(_registers(params), regions(params), params.fmt, params.address_width)
+    return place_map(engine_registers(identity(params), params), regions(params), params.fmt,
+                     params.address_width)

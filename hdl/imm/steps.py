@@ -4,6 +4,7 @@ its manifest and the golden model in the tests cannot disagree."""
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.machine import machine as engine_machine
 from ..engine.machine import schedules as engine_schedules
 from ..engine.params import check_work
@@ -12,8 +13,9 @@ from .programs import ImmPrograms, ImmSizes, build_imm
 __all__ = ["programs", "machine", "schedules"]
 
 
+@once_per_params
 def programs(params) -> ImmPrograms:
-    """The memory layout and the iteration's program."""
+    """The memory layout and the iteration's program, built once per parameter object."""
     return build_imm(ImmSizes(params.R, params.n, params.d), params.format)
 
 

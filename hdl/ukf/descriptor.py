@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
-from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers
-from .params import SIZE_MAX, UkfParams
+from ..engine.app import load_app
+from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
+from .params import FLOOR_REASON, SIZE_MAX, UkfParams
 from .regmap import steps
+from .steps import programs
 
 __all__ = ["CORE"]
 
@@ -26,7 +28,7 @@ def _docs() -> dict[str, Doc]:
                         "iterative at P = 1, pipelined above", "", "iterative or pipelined (any case)"),
         "banks": Doc("dual-port banks of the operand memory: more banks, fewer port conflicts and a larger "
                      "crossbar; by default 2P up to P = 2, P from 3 to 8, 8 above", "", "an integer in 2..2M"),
-        "format": engine_docs()["format"],
+        "format": Doc(engine_docs()["format"].meaning, "", f"{engine_docs()['format'].allowed}; {FLOOR_REASON}"),
         "w0": Doc("weight W0 of the centre sigma point (eq. 5)", "", "a number with 0 <= W0 < 1"),
         "form": Doc("the covariance's form: ldl, the chapter's (P in the buffer, factored by LDL^T every sig_gen), "
                     "or sqrt, the square-root form (a Cholesky factor S of P = S S^T in region sqrtP, updated by "
@@ -34,7 +36,7 @@ def _docs() -> dict[str, Doc]:
                     "docs/ukf.md)", "", "ldl (the default) or sqrt, any case"),
         "app": Doc("the application the core is sized for (its n, m, nw, nv and W0) and, on an on_chip core, the one "
                    "whose f and h are compiled into it", "", "MODULE:CLASS or FILE.py:CLASS of a "
-                   "kfgen.sim.ukf.app.UkfApplication subclass"),
+                   "kfgen.hdl.engine.app.UkfApplication subclass (kfgen.sim.ukf.app re-exports it)"),
         "on_chip": Doc("compile the application's f and h into the engine: one start (CTRL.step = iteration) "
                        "runs the whole iteration, reading z and u (docs/applications.md says what traces)", "",
                        "a switch; needs --app"),
@@ -83,6 +85,15 @@ def _extra(params, core) -> dict:
     }
 
 
+def _app(spec) -> dict:
+    """The parameters the application ``spec`` fixes (its sizes and W0)."""
+    return load_app(spec).core_parameters()
+
+
+def _waivers(params) -> str:
+    return engine_waivers(params, program_units(programs(params).steps.values()))
+
+
 CORE = CoreDescriptor(
     name="ukf",
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
@@ -92,5 +103,6 @@ CORE = CoreDescriptor(
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),
-    waivers=engine_waivers,
+    waivers=_waivers,
+    app=_app,
 )

@@ -1,11 +1,8 @@
 """An application's f and h compiled for the engine (``kfgen ukf --app MODULE:CLASS --on-chip``).
 
-The application is the user's Python (:class:`kfgen.sim.ukf.app.UkfApplication`), loaded by
-the layer that knows where applications live: ``hdl`` imports neither ``gen`` nor ``sim``, so
-the loader is handed in (:func:`set_loader`; :mod:`kfgen.sim.ukf.app` registers its
-``load_app`` when it is imported, and :func:`kfgen.gen.cores.bind` when it binds the UKF core,
-as the command line and a bench's workers do). The functions are traced
-once per configuration (:func:`kfgen.hdl.engine.trace.trace`):
+The application is the user's Python (:class:`kfgen.hdl.engine.app.UkfApplication`), loaded
+here by :func:`~kfgen.hdl.engine.app.load_app`. The functions are traced once per
+configuration (:func:`kfgen.hdl.engine.trace.trace`):
 
 * f(x, w, u, dt) with ``x`` (n), ``w`` (nw) the sigma point's parts and ``u`` (nu) the control
   input, ``dt`` the application's: a value that reads only ``u`` and constants is computed
@@ -19,17 +16,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from ..describe import ParamError
+from ..engine.app import load_app
 from ..engine.trace import Model, TraceError, trace
 
-__all__ = ["UkfModels", "set_loader", "compile_models"]
-
-_LOADER = None
-
-
-def set_loader(loader) -> None:
-    """``loader(spec) -> application`` (an object with ``n, nw, nv, m, nu, dt, f, h``)."""
-    global _LOADER
-    _LOADER = loader
+__all__ = ["UkfModels", "compile_models"]
 
 
 @dataclass(frozen=True)
@@ -53,13 +43,11 @@ def compile_models(spec: str, sizes: tuple[int, int, int, int]) -> UkfModels:
     Raises
     ------
     ParamError
-        ``app``: no loader, an application that does not load or does not fit the sizes, or
+        ``app``: an application that does not load or does not fit the sizes, or
         a construct that does not trace (its file and line named).
     """
-    if _LOADER is None:
-        raise ParamError("app", "no application loader: import kfgen.sim.ukf.app first")
     try:
-        app = _LOADER(spec)
+        app = load_app(spec)
     except ValueError as exc:
         raise ParamError("app", " ".join(str(exc).split())) from None
     n, nw, nv, m = sizes

@@ -15,24 +15,28 @@ from dataclasses import dataclass, field, fields
 
 from ..arith.float.format import FloatFormat
 from ..arith.float.params import OMIT_NONE, check_target
+from ..arith.float.trig_plan import trig_plan
 from ..describe import ParamError
-from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
+from ..engine.params import BINARY32, check_bus, check_div_sqrt, check_format, check_generation, check_work
+from .forms import FORMS, covariance_region
+from .models import compile_models
+from .regmap import ukf_map
 
-__all__ = ["UkfParams", "SIZE_MAX", "FORMS", "covariance_region", "default_banks"]
-
-#: The covariance forms: ``ldl``, the chapter's (P in the buffer, factored by LDL^T each
-#: sig_gen), and ``sqrt``, the square-root form (the Cholesky factor of P in the buffer,
-#: kept by orthogonal transformations: :mod:`kfgen.hdl.ukf.programs`).
-FORMS = ("ldl", "sqrt")
-
-
-def covariance_region(form: str) -> str:
-    """The buffer region of the state's covariance in ``form``: ``P``, or ``sqrtP`` (its
-    Cholesky factor S, P = S S^T) in the square-root form."""
-    return "sqrtP" if form == "sqrt" else "P"
+__all__ = ["UkfParams", "SIZE_MAX", "FORMAT_FLOOR", "FLOOR_REASON", "FORMS", "covariance_region", "default_banks"]
 
 #: Largest n, m, nw, nv: the ID register holds each in 8 bits.
 SIZE_MAX = 255
+
+#: The narrowest format the filter works in: at least 5 exponent bits and 4 fraction bits.
+#: Measured with the golden model (tests/common/test_format_floor.py): the mildest application
+#: (docs/examples/pendulum.py, Q = 1e-4 I) tracks at e5m4 within 1.25 times float64's error,
+#: and faults (err_pivot, first sig_gen) at e4m10 (Q's entries below 4 exponent bits' normal
+#: range) and at e5m3 and e8m3 (LDL^T's pivots round to zero). The shipped applications need
+#: more (the tracker e6m10, the nanosatellite e6m17).
+FORMAT_FLOOR = (5, 4)
+FLOOR_REASON = (f"at least {FORMAT_FLOOR[0]} exponent and {FORMAT_FLOOR[1]} fraction bits: below them the "
+                "first sig_gen's LDL^T pivots underflow or round to zero (err_pivot) for every application "
+                "measured (the golden model, tests/common/test_format_floor.py; docs/ukf.md)")
 
 _SIZES = (("states", "states"), ("observations", "observations"),
           ("process_noise", "process-noise terms"), ("measurement_noise", "measurement-noise terms"))
@@ -67,9 +71,10 @@ class UkfParams:
         port conflicts (fewer cycles) and a larger crossbar (its area grows with banks times
         lanes). ``None``: 2P up to P = 2, P from 3 to 8, 8 above (at P = 10, 8 banks take 3 %
         more cycles than 10 and leave the core 8,500 LUTs smaller).
-    format : str
-        Float format of every buffer word: ``binary16``, ``bfloat16``, ``binary32``,
-        ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by its canonical name.
+    format : FloatFormat or str
+        Float format of every buffer word: a :class:`FloatFormat` or its name, ``binary16``,
+        ``bfloat16``, ``binary32``, ``binary64`` or ``eEmM``, at most 64 bits wide. Replaced by
+        the :class:`FloatFormat` (manifests and headers record its name).
     w0 : float
         Weight W_0 of the centre sigma point, 0 <= W0 < 1 (eq. 5).
     form : "ldl" or "sqrt"
@@ -120,7 +125,7 @@ class UkfParams:
     pes: int = 1
     div_sqrt: str | None = None
     banks: int | None = None
-    format: str = "binary32"
+    format: FloatFormat | str = BINARY32
     w0: float = 0.0
     form: str = "ldl"
     app: str | None = None
@@ -173,15 +178,17 @@ class UkfParams:
             models = self.models  # loads and traces the application, or refuses it
             used = {op[0] for model in (models.f, models.h) for op in model.ops}
             if used & {"sin", "cos", "atan2"}:
-                from ..arith.float.trig_plan import trig_plan
                 try:
                     trig_plan(self.format)
                 except ValueError as exc:
                     raise ParamError("format", str(exc)) from None
             check_work(max(M ** 3, self.m ** 3) // 6 + self.N * models.fma_count, self.pes, "states",
                        at_least=True)
+        fmt = self.format
+        if fmt.exp_bits < FORMAT_FLOOR[0] or fmt.frac_bits < FORMAT_FLOOR[1]:
+            raise ParamError("format", f"{fmt.name} is too narrow for the filter to work; it needs {FLOOR_REASON}")
         check_bus(self)
-        from .regmap import ukf_map  # checks that the map fits, and gives the width it needs
+        # the map checks that it fits, and gives the width it needs
         object.__setattr__(self, "address_width", ukf_map(self).address_width)
 
     @property
@@ -216,7 +223,6 @@ class UkfParams:
         an ``on_chip`` core; ``None`` otherwise."""
         if not self.on_chip:
             return None
-        from .models import compile_models
         return compile_models(self.app, (self.n, self.nw, self.nv, self.m))
 
     @property
@@ -226,7 +232,8 @@ class UkfParams:
 
     @property
     def fmt(self) -> FloatFormat:
-        return FloatFormat.parse(self.format)
+        """:attr:`format` itself (the name the engine's modules read it by)."""
+        return self.format
 
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}

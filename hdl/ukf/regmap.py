@@ -18,10 +18,11 @@ the C header and the Markdown document all print them from the declaration.
 
 from __future__ import annotations
 
-from ..engine.regmap import Field, Register, RegisterMap, Value, place_map, status_registers
-from .params import covariance_region
+from ..describe import once_per_params
+from ..engine.regmap import Field, Identity, RegisterMap, Value, engine_registers, place_map
+from .forms import covariance_region
 
-__all__ = ["ukf_map", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "SQRT_VERSIONS", "STEPS",
+__all__ = ["ukf_map", "identity", "steps", "CORE_ID", "MAP_VERSION", "MAP_VERSION_ON_CHIP", "SQRT_VERSIONS", "STEPS",
            "ON_CHIP_STEPS", "SQRT_NOISE"]
 
 #: ID.core of the UKF (ASCII 'U').
@@ -73,47 +74,30 @@ def _version(params) -> int:
     return MAP_VERSION_ON_CHIP if params.on_chip else MAP_VERSION
 
 
-def _registers(params) -> tuple[Register, ...]:
-    fmt = params.fmt
-    events = (
-        ("done", 1, "the step started last has finished"),
-        ("err_pivot", 2, "a pivot was <= 0 or NaN: a pivot of Q's or R's Cholesky factorisation (not positive "
-                         "definite), or the squared norm of an innovation row in update's Householder "
-                         "triangularisation (the innovation covariance singular); the step ran to its end"
-                         if params.form == "sqrt" else
-                         "a pivot D_j of the LDL^T factorisation (eqs. 23-24) was <= 0 or NaN: P^a or S is "
-                         "not positive definite; the step ended early and the core is idle"),
-        ("err_nan", 3, "a NaN or an infinity reached x or " + covariance_region(params.form)),
-        ("err_busy", 4, "CTRL.start was written while busy and was refused"),
-    )
-    regs = [
-        Register("ID", 0x0, 64, "What the core is and how it was generated, so software can discover its "
-                 "configuration. Two bus words, low word first.", (
-                     Field("core", 0, 8, "ro", f"core identifier, {CORE_ID:#04x} ('U') for the UKF", reset=CORE_ID),
-                     Field("version", 8, 4, "ro", "version of this register and memory map",
-                           reset=_version(params)),
-                     Field("exp_bits", 12, 4, "ro", "float format of the buffer: exponent bits", reset=fmt.exp_bits),
-                     Field("frac_bits", 16, 6, "ro", "float format of the buffer: stored fraction bits",
-                           reset=fmt.frac_bits),
-                     Field("pes", 22, 10, "ro", "processing elements P", reset=params.pes),
-                     Field("n", 32, 8, "ro", "states n", reset=params.n),
-                     Field("nw", 40, 8, "ro", "process-noise terms nw", reset=params.nw),
-                     Field("nv", 48, 8, "ro", "measurement-noise terms nv", reset=params.nv),
-                     Field("m", 56, 8, "ro", "observations m", reset=params.m),
-                 )),
-        Register("CTRL", 0x8, 32, "Starts a step, or resets the core to idle.", (
-            Field("start", 0, 1, "w1p", "write 1 to start the step named by step (in the same write); refused "
-                                        "while busy (STATUS.err_busy)"),
-            Field("reset", 1, 1, "w1p", "write 1 for a soft reset: a running step stops, the core is idle, "
-                                        "STATUS is cleared; the buffer is kept"),
-            Field("step", 4, 3, "rw", "the step that start runs; 0..2 and 5..7 are reserved (start does nothing)",
-                  values=steps(params)) if params.on_chip else
-            Field("step", 4, 2, "rw", "the step that start runs" if params.form == "sqrt" else
-                  "the step that start runs; 3 is reserved (start does nothing)", values=steps(params)),
-        )),
-        *status_registers(events, "step", params.irq),
-    ]
-    return tuple(regs)
+def identity(params) -> Identity:
+    """What the UKF declares for the engine's ID, CTRL and STATUS registers."""
+    sqrt = params.form == "sqrt"
+    if params.on_chip:
+        step = Field("step", 4, 3, "rw", "the step that start runs; 0..2 and 5..7 are reserved (start does nothing)",
+                     values=steps(params))
+    else:
+        step = Field("step", 4, 2, "rw", "the step that start runs" if sqrt else
+                     "the step that start runs; 3 is reserved (start does nothing)", values=steps(params))
+    return Identity(
+        CORE_ID, "the UKF", _version(params),
+        (("n", "states n", params.n), ("nw", "process-noise terms nw", params.nw),
+         ("nv", "measurement-noise terms nv", params.nv), ("m", "observations m", params.m)),
+        "step", "write 1 to start the step named by step (in the same write); refused while busy (STATUS.err_busy)",
+        (("done", 1, "the step started last has finished"),
+         ("err_pivot", 2, "a pivot was <= 0 or NaN: a pivot of Q's or R's Cholesky factorisation (not positive "
+                          "definite), or the squared norm of an innovation row in update's Householder "
+                          "triangularisation (the innovation covariance singular); the step ran to its end"
+          if sqrt else
+          "a pivot D_j of the LDL^T factorisation (eqs. 23-24) was <= 0 or NaN: P^a or S is "
+          "not positive definite; the step ended early and the core is idle"),
+         ("err_nan", 3, "a NaN or an infinity reached x or " + covariance_region(params.form)),
+         ("err_busy", 4, "CTRL.start was written while busy and was refused")),
+        step)
 
 
 def _regions(params) -> tuple[tuple[str, int, int, str, str, str, str], ...]:
@@ -163,13 +147,15 @@ def _on_chip(regions, nu, column):
     return tuple(out)
 
 
+@once_per_params
 def ukf_map(params) -> RegisterMap:
     """The register and memory map of a UKF core with parameters ``params`` (a
-    :class:`kfgen.hdl.ukf.params.UkfParams`).
+    :class:`kfgen.hdl.ukf.params.UkfParams`), built once per parameter object.
 
     Raises
     ------
     ParamError
         ``address_width`` when ``params.address_width`` is too narrow for the map.
     """
-    return place_map(_registers(params), _regions(params), params.fmt, params.address_width)
+    return place_map(engine_registers(identity(params), params), _regions(params), params.fmt,
+                     params.address_width)

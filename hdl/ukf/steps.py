@@ -4,6 +4,7 @@ the core, its manifest and the golden model in the tests cannot disagree."""
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.machine import machine
 from ..engine.machine import schedules as engine_schedules
 from ..engine.params import check_work
@@ -12,8 +13,10 @@ from .programs import UkfPrograms, build_ukf
 __all__ = ["programs", "machine", "schedules"]
 
 
+@once_per_params
 def programs(params) -> UkfPrograms:
-    """The memory layout and the three step programs (sig_gen, predict, update)."""
+    """The memory layout and the step programs (sig_gen, predict, update; or the on-chip
+    core's), built once per parameter object."""
     return build_ukf(params)
 
 

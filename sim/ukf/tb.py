@@ -150,7 +150,7 @@ async def iterations(dut):
         dut._log.info("iteration %d: cycles %s, x %s", it, cycles, x.ravel())
     # the bit-exact model's estimate (binary32 or whatever format) against the float64 one
     scale = max(1.0, float(np.max(np.abs(ref.x))))
-    tol = {"binary64": 1e-12, "binary32": 1e-4}.get(p.format, 5e-2)
+    tol = {"binary64": 1e-12, "binary32": 1e-4}.get(p.format.name, 5e-2)
     assert np.max(np.abs(x.ravel() - ref.x)) <= tol * scale, (x.ravel(), ref.x)
     assert np.max(np.abs(P - ref.P)) <= tol * max(1.0, float(np.max(np.abs(ref.P)))), (P, ref.P)
     assert cycles == {k: tb.manifest["cycles"][k] for k in cycles}  # (the last sig_gen without noise)

@@ -68,3 +68,64 @@ def test_dependencies_point_down():
                            ("kfgen.gen.synth", "[]"), ("kfgen.gen.examples", "[]")):
         proc = subprocess.run([sys.executable, "-c", code, module], capture_output=True, text=True, check=True)
         assert proc.stdout.strip() == loaded, module
+
+
+def test_the_core_loads_its_application_itself():
+    """A UKF core traces an application's f and h without a loader handed in: a fresh
+    interpreter that imports only hdl builds an on-chip parameter object (the application's
+    module imports what it needs), and hdl keeps no mutable loader."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from kfgen.hdl.ukf.params import UkfParams; import kfgen.hdl.ukf.models as m; "
+            "p = UkfParams(states=4, observations=2, process_noise=2, measurement_noise=2, "
+            "app='tracker:Tracker', on_chip=True); "
+            "print(p.models.fma_count > 0, hasattr(m, 'set_loader'), 'kfgen.gen.cores' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.split() == ["True", "False", "False"]
+
+
+def test_an_application_sizes_the_core_as_on_the_command_line(tmp_path):
+    """``generate_core("ukf", app=..., on_chip=True)`` takes the application's sizes first, as
+    ``kfgen ukf --app ... --on-chip`` does (the command line generates through this API): the
+    same files; a value given beside ``app`` wins, and one the application fixed that the core
+    refuses names the application."""
+    made = generate_core("ukf", app="tracker:Tracker", on_chip=True, name="trk")
+    assert made.manifest["sizes"] == {"n": 4, "m": 2, "nw": 2, "nv": 2, "M": 8, "N": 10}
+    kfgen("ukf", "--app", "tracker:Tracker", "--on-chip", "--name", "trk", "-o", tmp_path / "cli")
+    assert {p.name: p.read_text() for p in (tmp_path / "cli").iterdir()} == dict(made.files)
+    from kfgen.gen.api import params_for
+
+    assert params_for("ukf", app="tracker:Tracker", process_noise=3).nw == 3
+    (tmp_path / "huge.py").write_text("import numpy as np\nfrom kfgen.sim.ukf.app import UkfApplication\n"
+                                      "class Huge(UkfApplication):\n    n, nw, nv, m, dt = 300, 1, 1, 1, 1.0\n"
+                                      "    x0, P0, Q, R = np.zeros(300), np.eye(300), [[1.0]], [[1.0]]\n")
+    spec = f"{tmp_path / 'huge.py'}:Huge"
+    with pytest.raises(ParamError) as exc:
+        params_for("ukf", app=spec)
+    assert (exc.value.param, exc.value.source) == ("states", f"app {spec}")
+    with pytest.raises(ParamError, match="^app: cannot import"):
+        params_for("ukf", app="kfgen_no_such_module:App")
+
+
+def test_the_usage_page_example_runs_without_warnings(tmp_path, monkeypatch):
+    """docs/usage.md's API block runs with no warning at all, UnusedElaboratable included
+    (Amaranth gives it when an elaboratable the example made is collected unused: so the
+    block's names are dropped and collected inside the check)."""
+    import gc
+    import re
+    import warnings
+
+    from helpers import ROOT
+
+    (code,) = re.findall(r"^```python\n(.*?)^```", (ROOT / "docs" / "usage.md").read_text(), re.M | re.S)
+    monkeypatch.chdir(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            namespace = {"__name__": "usage_example"}
+            exec(compile(code, "usage.md example", "exec"), namespace)
+            namespace.clear()
+            gc.collect()
+    assert not seen, [str(w.message) for w in seen]

@@ -414,3 +414,35 @@ def test_manifest(tmp_path, kwargs):
     for p in manifest["ports"]:
         rng = f"[{p['width'] - 1}:0] " if p["width"] > 1 else ""
         assert re.search(rf"^\s*{p['direction']} {re.escape(rng)}{p['name']};", verilog, re.M), p["name"]
+
+
+SMALL_UKF = ("ukf", "--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1")
+
+
+def test_unreachable_target_mhz_warns(tmp_path):
+    """A --target-mhz the delay model predicts the core misses: generated (exit 0), with one
+    warning line naming the predicted Fmax, and the manifest's met: false."""
+    proc = kfgen_in_process(*SMALL_UKF, "--target-mhz", "1000", "-o", tmp_path / "fast")
+    timing = json.loads((tmp_path / "fast" / "ukf.json").read_text())["timing"]
+    assert proc.returncode == 0 and timing["met"] is False
+    assert proc.stderr == (f"kfgen: warning: --target-mhz: 1000 MHz is above the predicted Fmax of "
+                           f"{timing['predicted_fmax_mhz']:g} MHz; the core is generated (its manifest's timing: "
+                           "met false)\n")
+    proc = kfgen_in_process(*SMALL_UKF, "--target-mhz", "50", "-o", tmp_path / "slow")
+    assert proc.returncode == 0 and proc.stderr == ""
+
+
+@pytest.mark.parametrize("fmt", ["e3m2", "e4m10", "e8m3"])
+def test_ukf_format_below_the_floor_exits_2(tmp_path, fmt):
+    """A format too narrow for the filter (kfgen.hdl.ukf.params.FORMAT_FLOOR): one line, exit 2,
+    nothing written; --help states the floor and its reason."""
+    proc = kfgen_in_process("ukf", "--format", fmt, "-o", tmp_path / "x")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"kfgen: error: --format: {fmt} is too narrow for the filter to work; it needs "
+                                  "at least 5 exponent and 4 fraction bits")
+    assert not (tmp_path / "x").exists()
+
+
+def test_ukf_help_states_the_format_floor():
+    text = " ".join(kfgen("ukf", "--help").stdout.split())
+    assert "at least 5 exponent and 4 fraction bits: below them" in text and "test_format_floor.py" in text

@@ -166,3 +166,68 @@ def test_driver_header_lists_every_port_macro_and_counts_none(outputs):
     assert listed and sorted(listed) == sorted(defaults)
     numbers = "one|two|three|four|five|six|seven|eight|nine|ten|[0-9]+"
     assert not re.search(rf"\b({numbers})\s+macros\b", comment), "a count of the macros that can go stale"
+
+
+# ---------------------------------------------------------------- what a core declares
+
+def test_engine_registers_take_what_a_core_declares():
+    """ID, CTRL, STATUS and IRQ_ENABLE of a core that declares only an Identity, on parameters
+    that have only what every engine core has (format, P, irq): nothing of the UKF's."""
+    from types import SimpleNamespace
+
+    from kfgen.hdl.arith.float.format import FloatFormat
+    from kfgen.hdl.engine.regmap import Identity, engine_registers
+
+    params = SimpleNamespace(fmt=FloatFormat(8, 23), pes=3, irq=True)
+    ident = Identity(0x4B, "the KF", 2, (("n", "states n", 5), ("d", "measurements d", 2)), "iteration",
+                     "write 1 to run one iteration", (("done", 1, "finished"), ("err_nan", 3, "a NaN")))
+    regs = {r.name: r for r in engine_registers(ident, params)}
+    assert list(regs) == ["ID", "CTRL", "STATUS", "IRQ_ENABLE"]
+    id_reset = {f.name: (f.lsb, f.reset) for f in regs["ID"].fields}
+    assert id_reset == {"core": (0, 0x4B), "version": (8, 2), "exp_bits": (12, 8), "frac_bits": (16, 23),
+                        "pes": (22, 3), "n": (32, 5), "d": (40, 2)}
+    assert "('K') for the KF" in regs["ID"].field("core").desc
+    assert [f.name for f in regs["CTRL"].fields] == ["start", "reset"]
+    assert regs["CTRL"].desc.startswith("Starts an iteration") and "a running iteration stops" in \
+        regs["CTRL"].field("reset").desc
+    assert [f.name for f in regs["STATUS"].fields] == ["busy", "done", "err_nan"]
+
+
+@pytest.mark.parametrize("core", ["ukf", "imm"])
+def test_each_core_declares_its_header(core):
+    """The UKF's and the IMM's ID, CTRL, STATUS are the engine's, from their identity."""
+    from importlib import import_module
+
+    from kfgen.hdl.engine.regmap import engine_registers
+
+    regmap = import_module(f"kfgen.hdl.{core}.regmap")
+    for kwargs in MAP_CONFIGS[core]:
+        params = CORES[core][1](**kwargs)
+        assert CORES[core][2](params).registers == engine_registers(regmap.identity(params), params)
+
+
+def test_engine_waivers_follow_the_units_used():
+    """The CopySign waiver comes with the CopySign unit (the square-root form's programs use
+    it), not with a core's ``form``."""
+    from types import SimpleNamespace
+
+    from kfgen.hdl.arith.float.format import FloatFormat
+    from kfgen.hdl.engine.descriptor import engine_waivers, program_units
+
+    params = SimpleNamespace(name="k", fmt=FloatFormat(8, 23))
+    assert "copysign" not in engine_waivers(params) and "copysign" in engine_waivers(params, {"copysign"})
+    sqrt = UkfParams(states=2, observations=1, process_noise=1, measurement_noise=1, form="sqrt")
+    assert "copysign" in program_units(ukf_programs(sqrt).steps.values())
+
+
+@pytest.mark.parametrize("core", ["ukf", "imm"])
+def test_params_and_regmap_do_not_import_each_other(core):
+    """A core's map imports nothing of its parameters' module (what both need sits below)."""
+    import ast
+    from pathlib import Path
+
+    import kfgen.hdl
+
+    path = Path(kfgen.hdl.__file__).parent / core / "regmap.py"
+    names = {node.module for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.ImportFrom)}
+    assert "params" not in names and f"kfgen.hdl.{core}.params" not in names

@@ -151,7 +151,7 @@ def test_core_parameters_as_documented():
     """The docstring's use: the application's sizes and W0, with the core's own choices beside."""
     app = Tracker()
     p = UkfParams(**app.core_parameters(), format="binary64", pes=2)
-    assert (p.n, p.m, p.nw, p.nv, p.w0, p.pes, p.format) == (4, 2, 2, 2, 0.0, 2, "binary64")
+    assert (p.n, p.m, p.nw, p.nv, p.w0, p.pes, p.format.name) == (4, 2, 2, 2, 0.0, 2, "binary64")
     assert "Returns" in UkfApplication.core_parameters.__doc__
 
 

@@ -9,6 +9,7 @@ import subprocess
 import pytest
 
 from kfgen.gen.regdoc import documents, map_manifest
+from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.describe import ParamError
 from kfgen.hdl.engine.regmap import REGION_ROLES, Field, Memory, Register
 from kfgen.hdl.ukf.params import UkfParams
@@ -64,9 +65,9 @@ def test_bad_parameter_names_itself_in_one_line(kwargs, param, says):
 def test_defaults_are_the_nanosatellite_filter():
     p = UkfParams()
     assert (p.n, p.m, p.nw, p.nv, p.M, p.N, p.pes) == (7, 6, 7, 6, 20, 22, 1)
-    assert (p.format, p.w0, p.irq, p.address_width) == ("binary32", 0.0, True, 13)
-    # the format is recorded by its canonical name, the width as built
-    assert UkfParams(format="E8M23").format == "binary32"
+    assert (p.format, p.w0, p.irq, p.address_width) == (FloatFormat(8, 23), 0.0, True, 13)
+    # a format's name is replaced by the one FloatFormat (recorded by its canonical name), the width as built
+    assert UkfParams(format="E8M23").format == p.format and p.fmt is p.format and p.format.name == "binary32"
     assert UkfParams(address_width=20).address_width == 20
 
 
@@ -114,7 +115,7 @@ def test_elements_and_bus_words(config):
     params, regmap = config
     words = 1 if params.fmt.width <= 32 else 2
     for m in regmap.memories:
-        assert (m.format, m.words, m.element_size) == (params.format, words, 4 * words)
+        assert (m.format, m.words, m.element_size) == (params.format.name, words, 4 * words)
         for row in range(m.rows):
             for col in range(m.cols):
                 for w in range(words):
@@ -209,7 +210,7 @@ def test_manifest_entries(config):
     for m, mem in zip(data["memories"], regmap.memories):
         assert {"name", "offset", "shape", "order", "format", "access"} <= set(m)
         assert (m["name"], m["offset"], m["shape"], m["order"], m["format"], m["access"]) == \
-            (mem.name, mem.offset, [mem.rows, mem.cols], "row-major", params.format, mem.access)
+            (mem.name, mem.offset, [mem.rows, mem.cols], "row-major", params.format.name, mem.access)
         assert (m["description"], m["role"], m["layout"]) == (mem.desc, mem.role, mem.layout)
 
 
