@@ -9,9 +9,10 @@ need.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 from ..arith.float.format import FloatFormat
+from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError, check_name
 from ..engine.params import check_div_sqrt, check_format, check_generation, check_work
 
@@ -51,6 +52,8 @@ class EkfParams:
         AXI4-Stream ports beside the AXI4 slave (z and u in; x and diag P out), as the UKF's.
     irq : bool
         Whether the core has an ``irq`` output.
+    target_mhz : float or None
+        A clock in MHz to pipeline the engine's units for, as the UKF's; ``None``: the units' defaults.
     name : str
         Top-level module name.
 
@@ -72,9 +75,11 @@ class EkfParams:
     format: str = "binary32"
     streams: bool = False
     irq: bool = True
+    target_mhz: float | None = field(default=None, metadata=OMIT_NONE)
     name: str = "ekf"
 
     def __post_init__(self):
+        object.__setattr__(self, "target_mhz", check_target(self.target_mhz))
         if not isinstance(self.app, str) or not self.app:
             raise ParamError("app", f"must be MODULE:CLASS or FILE.py:CLASS, not {self.app!r}")
         for key, what, lo in _SIZES:

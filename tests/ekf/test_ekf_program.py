@@ -19,7 +19,7 @@ SIZES = dict(states=4, observations=2, process_noise=2, measurement_noise=2)
 
 def test_params_defaults_and_sizes():
     p = EkfParams("tracker:Tracker", **SIZES, inputs=1, pes=2)
-    assert p.sizes == (4, 2, 2, 2, 1) and p.div_sqrt == "pipelined" and p.banks == 4 and p.format == "binary32"
+    assert p.sizes == (4, 2, 2, 2, 1) and p.div_sqrt == "pipelined" and p.banks == 4 and p.format.name == "binary32"
     assert EkfParams("tracker:Tracker", **SIZES, format="binary64").fmt.width == 64
 
 
