@@ -82,6 +82,11 @@ def _ukf_driver(params):
     return ukf_driver(params.name, params.format.name)
 
 
+def _imm_driver(params):
+    from .cdriver import id_fields, imm_driver
+    return imm_driver(params.name, params.format.name, id_fields(_imm_map(params)))
+
+
 def _ukf_documents(params):
     """The UKF's map documents and C driver; with stream ports, their fields in ``TOP.md``
     and as ``TOP_S_AXIS_*``/``TOP_M_AXIS_*`` macros in the driver's header."""
@@ -123,7 +128,7 @@ _HOOKS = {
     "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads,
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
-            "documents": _map_documents(_imm_map), "extra": _with_map},
+            "documents": _map_documents(_imm_map, _imm_driver), "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor
