@@ -1,6 +1,8 @@
-"""Generate a core and simulate it, in one command: the co-simulation of a UKF application on
-the core sized for it (``python -m kfgen.gen.cosim ukf --app MODULE:CLASS``, or ``kfgen cosim
-ukf``), and the IMM's satellite-link scenario on a generated core (:func:`imm_scenario`).
+"""Generate a core and simulate it, in one command: the co-simulation of a UKF application or
+of an IMM application (a model set and its scenario) on the core sized for it (``python -m
+kfgen.gen.cosim ukf --app MODULE:CLASS``, ``python -m kfgen.gen.cosim imm --app
+FILE.py:CLASS``), and the IMM's satellite-link scenario on a generated core
+(:func:`imm_scenario`).
 
 Generation is gen's and simulation sim's (:mod:`kfgen.sim.ukf.run`, :mod:`kfgen.sim.imm.run`,
 on a directory holding a generated core): these commands join the two, so that sim never
@@ -22,17 +24,20 @@ from kfgen.hdl.imm.descriptor import CORE as IMM
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.ukf.descriptor import CORE
 from kfgen.hdl.ukf.params import UkfParams
-from kfgen.sim.engine.run import build_core
+from kfgen.sim.engine.run import CosimFault, build_core, build_driver, run_cosim as engine_cosim
+from kfgen.sim.imm.app import checked_scenario as imm_checked_scenario
+from kfgen.sim.imm.app import load_imm_app
+from kfgen.sim.imm.reference import run_reference as imm_reference
 from kfgen.sim.imm.run import run_scenario
 from kfgen.sim.ukf.accuracy import run_reference
 from kfgen.sim.ukf.app import AppError, check_models, checked_scenario, load_app, portable_spec
-from kfgen.sim.ukf.run import build_driver, run_cosim
+from kfgen.sim.ukf.run import run_cosim
 from kfgen.sim.ukf.software import StepError
 
 from .cdriver import FORMATS as C_FORMATS
 from .synth import write_core
 
-__all__ = ["EXIT_CODES", "FAULTS", "ukf", "imm_scenario", "main"]
+__all__ = ["EXIT_CODES", "FAULTS", "ukf", "imm", "imm_scenario", "main"]
 
 #: The command, for its messages.
 PROG = "python -m kfgen.gen.cosim"
@@ -140,6 +145,78 @@ def ukf(argv) -> int:
     return 0
 
 
+def imm(argv) -> int:
+    """``python -m kfgen.gen.cosim imm --app FILE.py:CLASS [...]``: size an IMM core for an
+    application (its R models of n states, d measurements), generate and build it, and
+    co-simulate the application's scenario on it (every word checked against the golden
+    model); prints the cycles of an iteration and the combined estimate's distance from the
+    float64 reference IMM.
+
+    Before anything is generated: the application loads and passes its checks
+    (:meth:`kfgen.sim.imm.app.ImmApplication.check`), its scenario is well formed. A file's
+    spec is resolved here, once, as the UKF's (:func:`ukf`).
+
+    Returns the exit status (:data:`EXIT_CODES`)."""
+    summary = textwrap.fill(" ".join(imm.__doc__.split("\n\n")[0].split()), 88)
+    ap = _Parser(prog=f"{PROG} imm", description=summary, epilog=EXIT_CODES,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--app", required=True,
+                    help="the application, path/file.py:Class or module:Class, a subclass of "
+                         "kfgen.sim.imm.app.ImmApplication (shipped example: docs/examples/imm_cv.py:ConstantVelocity)")
+    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
+    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
+    ap.add_argument("--format", default="binary32",
+                    help="the core's number format (default binary32); the C processor takes binary32 or binary64")
+    ap.add_argument("--processor", choices=("python", "c"), default="python",
+                    help="the Python software side or the generated C driver (default python)")
+    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
+    ap.add_argument("-o", "--out", default="build/cosim-imm", help="work directory (default build/cosim-imm)")
+    args = ap.parse_args(argv)
+    try:
+        if args.steps < 1:
+            raise ValueError(f"--steps must be a positive integer, not {args.steps}")
+        app = load_imm_app(args.app)
+        spec, app_dir = portable_spec(args.app)
+        params = ImmParams(**app.core_parameters(), pes=args.pes, format=args.format, name="imm_app")
+        if args.processor == "c" and params.format.name not in C_FORMATS:
+            raise ValueError(f"--processor c: the C driver converts {' and '.join(C_FORMATS)} elements only, "
+                             f"not {params.format} (use --processor python)")
+        scenario = imm_checked_scenario(app, args.steps, args.seed)
+    except (AppError, ParamError, ValueError) as exc:
+        print(f"cosim: error: {exc}", file=sys.stderr)
+        return 2
+    work = Path(args.out)
+    rtl, _ = write_core(IMM, params, work)
+    model = build_core(rtl, params.name, work / "verilator", waves=args.waves,
+                       cycles=args.steps * 5000)  # an iteration and its transfers: a few thousand cycles
+    driver = build_driver(rtl, params.name) if args.processor == "c" else None
+    npz = rtl / "cosim.npz"
+    npz.unlink(missing_ok=True)  # a run that fails leaves none
+    env = {"KFGEN_STEPS": str(args.steps), "KFGEN_SEED": str(args.seed)}
+    try:
+        engine_cosim(model, rtl, params.name, "kfgen.sim.imm.cosim", f"{args.processor}_processor", "cosim", spec,
+                     app_dir=app_dir, out=npz, driver=driver, env=env)
+    except CosimFault as exc:
+        print(f"cosim: error: the core raised a numerical fault at {exc} ({FAULTS[exc.bit]}); "
+              f"log {rtl / 'runs' / 'cosim.log'}", file=sys.stderr)
+        return 3
+    with np.load(npz) as d:
+        x, mu, total, wall = d["x"], d["mu"], d["total"], float(d["wall_s"])
+        iteration = d["cycles"] if "cycles" in d.files else None
+        sim_cycles = int(d["sim_cycles"])
+    ref = imm_reference(app.system(), *app.initial(), scenario.z)
+    print(f"{args.steps} iterations of {args.app} on {params.name} (R = {params.R}, n = {params.n}, d = {params.d}, "
+          f"P = {params.pes}, {params.format}), {args.processor} processor: every word equal to the golden model's")
+    alone = "" if iteration is None else f"the iteration {iteration.mean():.0f}, "
+    print(f"cycles per iteration: {alone}with the bus transfers {total.mean():.0f}")
+    print(f"simulation: {sim_cycles} cycles in {wall:.1f} s ({sim_cycles / wall:,.0f} cycles/s)")
+    print(f"largest |x - float64 reference| over the run: {np.max(np.abs(x - ref.x)):.3g}; "
+          f"largest |mu - reference|: {np.max(np.abs(mu - ref.mu)):.3g}")
+    print(f"files: {rtl} (cosim.npz, runs/cosim.log{', runs/cosim.fst' if args.waves else ''}"
+          f"{f', {params.name}_driver.h/.c' if params.format.name in C_FORMATS else ''})")
+    return 0
+
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, as every other refusal here, not the usage first
@@ -172,11 +249,11 @@ def imm_scenario(out_dir, steps: int, *, pes: int = 4, seed: int | None = None, 
 
 
 #: The commands, by core.
-COMMANDS = {"ukf": ukf}
+COMMANDS = {"ukf": ukf, "imm": imm}
 
 
 def main(argv=None) -> int:
-    """``python -m kfgen.gen.cosim CORE ARGS``: the co-simulation command of ``CORE`` (``ukf``);
+    """``python -m kfgen.gen.cosim CORE ARGS``: the co-simulation command of ``CORE`` (``ukf``, ``imm``);
     its exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv or argv[0] not in COMMANDS:

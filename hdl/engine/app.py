@@ -203,7 +203,7 @@ def _import(module: str):
     return importlib.import_module(f"{SHIPPED}.{module}")
 
 
-def load_app(spec: str) -> UkfApplication:
+def load_app(spec: str, base: type = UkfApplication, where: str = "kfgen.sim.ukf.app"):
     """The application ``spec`` names, instantiated with no arguments and checked.
 
     Parameters
@@ -215,6 +215,10 @@ def load_app(spec: str) -> UkfApplication:
         ``"path/to/file.py:Class"``; ``Class`` is a subclass of
         :class:`UkfApplication` (or anything callable with no arguments that returns an
         instance of one).
+    base : type
+        The class the application must be an instance of (another core's application class,
+        :class:`kfgen.sim.imm.app.ImmApplication`), with a ``check()`` method; ``where``
+        names the module users import it from, for the messages.
 
     Raises
     ------
@@ -238,13 +242,13 @@ def load_app(spec: str) -> UkfApplication:
     if cls is None:
         raise AppError(f"module {module!r} has no {attr!r}")
     if not callable(cls):
-        raise AppError(f"{spec} is a {type(cls).__name__}, not a UkfApplication class")
+        raise AppError(f"{spec} is a {type(cls).__name__}, not a {base.__name__} class")
     try:
         app = cls()
     except Exception as exc:
         raise AppError(f"{spec}() failed: {type(exc).__name__}: {one_line(exc)}") from None
-    if not isinstance(app, UkfApplication):
-        raise AppError(f"{spec}() is a {type(app).__name__}, not a UkfApplication (kfgen.sim.ukf.app)")
+    if not isinstance(app, base):
+        raise AppError(f"{spec}() is a {type(app).__name__}, not a {base.__name__} ({where})")
     app.check()
     return app
 

@@ -43,12 +43,13 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.simtime import get_sim_time
-from cocotb.task import bridge, resume
+from cocotb.task import bridge
 from cocotb.triggers import ClockCycles, RisingEdge
 from cocotbext.axi import AxiBus, AxiMaster, AxiResp
 
 from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
+from kfgen.sim.engine.mmio import Dev, Guard, c_function, set_hooks
 from kfgen.sim.engine.prologue import Prologue
 from kfgen.sim.engine.tb import CLOCK_NS
 from kfgen.sim.engine.watchdog import Expired, Watchdog, wait_irq
@@ -354,21 +355,8 @@ async def python_processor(dut):
 
 # ---------------------------------------------------------------------------- the C processor
 
-_READ32 = ctypes.CFUNCTYPE(ctypes.c_uint32, ctypes.c_void_p, ctypes.c_uint64)
-_WRITE32 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint32)
-_BLOCK = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_uint64, ctypes.POINTER(ctypes.c_uint32), ctypes.c_uint32)
-_EVENT = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
 _MODEL = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
                           ctypes.POINTER(ctypes.c_double))
-
-
-class _Hooks(ctypes.Structure):
-    _fields_ = [("read32", _READ32), ("write32", _WRITE32), ("read_block", _BLOCK), ("write_block", _BLOCK),
-                ("wait_event", _EVENT), ("ctx", ctypes.c_void_p)]
-
-
-class _Dev(ctypes.Structure):
-    _fields_ = [("base", ctypes.c_size_t), ("status", ctypes.c_uint32)]
 
 
 @cocotb.test()
@@ -382,11 +370,6 @@ async def c_processor(dut):
     n, nw, nv, m = app.n, app.nw, app.nv, app.m
     state = {"u": None}
 
-    def read_block(_ctx, addr, dst, count):
-        words = resume(bus.read)(addr, count)
-        for i, w in enumerate(words):
-            dst[i] = w
-
     def f_cb(_ctx, x, w, out):
         y = app.f(np.ctypeslib.as_array(x, (n,)).copy(), np.ctypeslib.as_array(w, (nw,)).copy(), state["u"], app.dt)
         np.ctypeslib.as_array(out, (n,))[:] = y
@@ -395,46 +378,19 @@ async def c_processor(dut):
         y = app.h(np.ctypeslib.as_array(x, (n,)).copy(), np.ctypeslib.as_array(v, (nv,)).copy())
         np.ctypeslib.as_array(out, (m,))[:] = y
 
-    errors = []  # an exception in a callback cannot cross the C code: kept, raised after
-
-    def guard(fn):
-        def call(*args):
-            try:
-                return fn(*args)
-            except BaseException as exc:  # noqa: BLE001 (re-raised by check())
-                errors.append(exc)
-                return 0
-        return call
-
-    def check():
-        if errors:
-            raise errors[0]
-
-    callbacks = [_READ32(guard(lambda _c, a: resume(bus.read32)(a))),
-                 _WRITE32(guard(lambda _c, a, v: resume(bus.write32)(a, v))),
-                 _BLOCK(guard(read_block)),
-                 _BLOCK(guard(lambda _c, a, src, k: resume(bus.write)(a, [src[i] for i in range(k)]))),
-                 _EVENT(guard(lambda _c: resume(bus.wait_event)()))]
-    hooks = _Hooks(*callbacks, None)
-    getattr(lib, f"{top}_set_hooks")(ctypes.byref(hooks))
-    models = (_MODEL(guard(f_cb)), _MODEL(guard(h_cb)))
-    dev = _Dev()
+    guard = Guard()
+    keep = set_hooks(lib, top, guard, bus.read32, bus.write32, bus.read, bus.write, bus.wait_event)
+    models = (_MODEL(guard.wrap(f_cb)), _MODEL(guard.wrap(h_cb)))
+    check = guard.check
+    dev = Dev()
     dbl = ctypes.POINTER(ctypes.c_double)
 
     def arr(values):
         a = np.ascontiguousarray(np.ravel(np.asarray(values, dtype=np.float64)))
         return a, a.ctypes.data_as(dbl)
 
-    def blocking(symbol):  # a C function as cocotb's bridge wants it (a Python function)
-        fn = getattr(lib, f"{top}_{symbol}")
-        fn.restype = ctypes.c_int if symbol != "estimate" else None
-
-        def call(*args):
-            return fn(*args)
-        call.__qualname__ = call.__name__ = f"{top}_{symbol}"
-        return call
-
-    init, iterate, load, estimate = map(blocking, ("init", "iterate", "load", "estimate"))
+    init, iterate, load = (c_function(lib, top, s) for s in ("init", "iterate", "load"))
+    estimate = c_function(lib, top, "estimate", None)
     wall = time.monotonic()
     ok = await bridge(init)(ctypes.byref(dev), ctypes.c_size_t(0))
     check()
@@ -459,4 +415,5 @@ async def c_processor(dut):
         check()
         r.estimates[k] = x_out[0]
         r.per_iteration.append({key: bus.cycles[key] - before[key] for key in before})
+    assert keep  # the hooks lived while the driver ran
     r.finish(time.monotonic() - wall)

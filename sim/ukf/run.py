@@ -5,31 +5,15 @@ the core and simulating it in one command is gen's (:mod:`kfgen.gen.cosim`)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-from pathlib import Path
-
-from ..verilator import Build, run_test
+from ..engine.run import CosimFault, build_driver
+from ..engine.run import run_cosim as engine_cosim
+from ..verilator import Build
 from .software import StepError
 
 __all__ = ["TB", "build_driver", "run_cosim"]
 
 #: The UKF's cocotb testbench (:func:`kfgen.sim.engine.run.run_tb`'s ``module``).
 TB = "kfgen.sim.ukf.tb"
-
-
-def build_driver(rtl_dir, top: str, out_dir=None) -> Path:
-    """Compile the generated C driver ``rtl_dir/TOP_driver.c`` as a shared library with its MMIO
-    hooks (``-DKFGEN_MMIO_HOOKS``), under the flags the driver promises to build with
-    (``-std=c99 -Wall -Wextra -Werror``); the library's path."""
-    rtl_dir = Path(rtl_dir)
-    out = Path(out_dir or rtl_dir) / f"lib{top}_driver.so"
-    cmd = ["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-shared", "-fPIC", "-DKFGEN_MMIO_HOOKS",
-           "-I", str(rtl_dir), str(rtl_dir / f"{top}_driver.c"), "-o", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr}")
-    return out
 
 
 def run_cosim(model: Build, rtl_dir, top: str, test: str, name: str, app: str, steps: int, *, seed: int = 1,
@@ -48,28 +32,9 @@ def run_cosim(model: Build, rtl_dir, top: str, test: str, name: str, app: str, s
     AssertionError
         When the run failed otherwise (a word unlike the golden model's), with the log's tail.
     """
-    rtl_dir = Path(rtl_dir).resolve()  # the simulation runs in rtl_dir/runs
-    run_dir = rtl_dir / "runs"
-    run_dir.mkdir(parents=True, exist_ok=True)
-    fault = run_dir / f"{name}_fault.json"
-    fault.unlink(missing_ok=True)
-    # The simulation runs in run_dir: the application is found where the caller finds it (and
-    # the manifest's file name, portable_spec's, on sys.path from KFGEN_APP_DIR).
-    app_dir = Path(app_dir or Path.cwd()).resolve()
-    module, _, cls = app.rpartition(":")
-    if module.endswith(".py"):
-        app = f"{app_dir / module}:{cls}"
-    env = {"KFGEN_TB_MANIFEST": str(rtl_dir / f"{top}.json"), "COCOTB_TEST_FILTER": rf"kfgen\.sim\.ukf\.cosim\.{test}\b",
-           "KFGEN_APP": app, "KFGEN_STEPS": str(steps), "KFGEN_SEED": str(seed), "KFGEN_BEATS": beats,
-           "KFGEN_WAIT": wait, "KFGEN_COSIM_FAULT": str(fault), "KFGEN_APP_DIR": str(app_dir)}
-    if out:
-        env["KFGEN_COSIM_OUT"] = str(Path(out).resolve())
-    if driver:
-        env["KFGEN_DRIVER_LIB"] = str(Path(driver).resolve())
+    env = {"KFGEN_STEPS": str(steps), "KFGEN_SEED": str(seed), "KFGEN_BEATS": beats, "KFGEN_WAIT": wait}
     try:
-        run_test(model, "kfgen.sim.ukf.cosim", run_dir, name, env)
-    except AssertionError:
-        if not fault.exists():
-            raise
-        f = json.loads(fault.read_text())
-        raise StepError(f["step"], f["bit"], f["iteration"]) from None
+        engine_cosim(model, rtl_dir, top, "kfgen.sim.ukf.cosim", test, name, app, app_dir=app_dir, out=out,
+                     driver=driver, env=env)
+    except CosimFault as exc:
+        raise StepError(exc.step, exc.bit, exc.iteration) from None
