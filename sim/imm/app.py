@@ -148,14 +148,14 @@ def checked_scenario(app: ImmApplication, steps: int, seed: int) -> ImmScenario:
     AppError
         One line naming what the scenario returned wrong (or what it raised).
     """
-    name = f"{type(app).__name__}.scenario"
+    name = f"{type(app).__name__}.scenario({steps}, {seed})"
     try:
         got = app.scenario(steps, seed)
     except Exception as exc:  # the user's function: whatever it raises, one line
-        raise AppError(f"{name}({steps}, {seed}) raised {type(exc).__name__}: {one_line(exc)}") from None
+        raise AppError(f"{name} raised {type(exc).__name__}: {one_line(exc)}") from None
     z, truth = (got.z, got.truth) if isinstance(got, ImmScenario) else (got, None)
     d, n = app.models[0].d, app.models[0].n
-    z = checked_array(f"{name}'s z", z, (steps, d))
+    z = checked_array(f"{name}.z", z, (steps, d))
     if truth is not None:
-        truth = checked_array(f"{name}'s truth", truth, (steps, n))
+        truth = checked_array(f"{name}.truth", truth, (steps, n))
     return ImmScenario(z, truth)

@@ -55,6 +55,10 @@ ELSEWHERE = {
     "kfgen schur --size 2 -o out/schur": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
     "kfgen imm --models 3 --states 2 --measurements 2 --pes 2 --name imm_small -o out/imm_small":
         "tests/imm/test_imm_core.py::test_files_and_manifest",
+    "python -m kfgen.gen.cosim imm --app docs/examples/imm_cv.py:ConstantVelocity --steps 3 -o build/imm-cosim":
+        "tests/imm/test_imm_cosim.py::test_documented_commands",
+    "python -m kfgen.gen.cosim imm --app docs/examples/imm_cv.py:ConstantVelocity --steps 3 --processor c "
+    "-o build/imm-cosim": "tests/imm/test_imm_cosim.py::test_documented_commands",
     "kfgen fusesoc --cores-root cores run --target lint kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_lint_target",
     "kfgen fusesoc --cores-root cores run --target sim kfgen:cores:trk":
