@@ -170,7 +170,7 @@ def test_driver_compiles(tmp_path, fmt):
 def documented():
     """The page's ``cosim imm`` commands and the output it prints for the first."""
     page = (ROOT / "docs" / "imm.md").read_text()
-    commands = re.findall(r"^python -m kfgen\.gen\.cosim imm --app .*$", page, re.M)
+    commands = re.findall(r"^python -m kfgen\.gen\.cosim imm --app docs/examples/.*$", page, re.M)
     output = re.search(r"^```text\n(\d+ iterations of .*?)^```", page, re.M | re.S).group(1)
     return commands, output
 
