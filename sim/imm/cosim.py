@@ -116,7 +116,7 @@ async def c_processor(dut):
     lib = ctypes.CDLL(os.environ["KFGEN_DRIVER_LIB"])
     top = tb.manifest["parameters"]["name"]
     mmio, guard = TbMmio(tb), Guard()
-    keep = set_hooks(lib, top, guard, mmio.read32, mmio.write32, mmio.read_block, mmio.write_block, mmio.wait_event)
+    hooks = set_hooks(lib, top, guard, mmio.read32, mmio.write32, mmio.read_block, mmio.write_block, mmio.wait_event)
     init, step = c_function(lib, top, "init"), c_function(lib, top, "step")
     load_c, estimate, models = (c_function(lib, top, s, None) for s in ("load", "estimate", "models"))
     dbl = ctypes.POINTER(ctypes.c_double)
@@ -146,5 +146,5 @@ async def c_processor(dut):
         await bridge(models)(ctypes.byref(dev), xs[1], Ps[1])
         guard.check()
         r.record(mu[0].copy(), x[0].copy(), P[0].copy(), xs[0].copy(), Ps[0].copy(), None, tb.now() - t0)
-    assert keep  # the callbacks lived while the driver ran
+    assert hooks  # the callbacks lived while the driver ran
     r.finish(time.monotonic() - wall)

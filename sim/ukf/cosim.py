@@ -379,7 +379,7 @@ async def c_processor(dut):
         np.ctypeslib.as_array(out, (m,))[:] = y
 
     guard = Guard()
-    keep = set_hooks(lib, top, guard, bus.read32, bus.write32, bus.read, bus.write, bus.wait_event)
+    hooks = set_hooks(lib, top, guard, bus.read32, bus.write32, bus.read, bus.write, bus.wait_event)
     models = (_MODEL(guard.wrap(f_cb)), _MODEL(guard.wrap(h_cb)))
     check = guard.check
     dev = Dev()
@@ -415,5 +415,5 @@ async def c_processor(dut):
         check()
         r.estimates[k] = x_out[0]
         r.per_iteration.append({key: bus.cycles[key] - before[key] for key in before})
-    assert keep  # the hooks lived while the driver ran
+    assert hooks  # the callbacks lived while the driver ran
     r.finish(time.monotonic() - wall)
