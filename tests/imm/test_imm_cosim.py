@@ -6,6 +6,7 @@ build."""
 
 import contextlib
 import io
+import os
 import re
 import shlex
 import subprocess
@@ -76,6 +77,14 @@ class ShortZ(Good):
         sc = super().scenario(steps, seed)
         return sc.z[:-1]
 '''
+
+
+def run_command(*args, cwd):
+    """``python -m kfgen.gen.cosim imm ARGS`` as a user runs it: not under pytest (whose
+    variable makes cocotb's runner log a failed test itself)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}
+    return subprocess.run([sys.executable, "-m", "kfgen.gen.cosim", "imm", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, env=env)
 
 
 def cosim_main(*args):
@@ -187,8 +196,9 @@ def test_documented_commands(build_root):
     printed = []
     for command in commands:
         args = shlex.split(command)
+        assert args[:4] == ["python", "-m", "kfgen.gen.cosim", "imm"]
         args[args.index("-o") + 1] = str(work)
-        proc = subprocess.run([sys.executable, *args[1:]], cwd=ROOT, capture_output=True, text=True)
+        proc = run_command(*args[4:], cwd=ROOT)
         assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
         assert "every word equal to the golden model's" in proc.stdout
         printed.append(proc.stdout)
@@ -202,3 +212,36 @@ def test_documented_commands(build_root):
                                                      r"(\S+)", text).groups())
         assert x_err < 1e-5 and mu_err < 1e-5, text
     assert printed[1].splitlines()[3] == printed[0].splitlines()[3]  # the C driver's words are the same
+
+
+#: The example with a measurement beyond binary32's range at iteration 2 (the golden model
+#: raises err_pivot and err_nan there).
+GLITCH = f'''
+import importlib.util
+
+spec = importlib.util.spec_from_file_location("imm_cv_example", {str(ROOT / "docs" / "examples" / "imm_cv.py")!r})
+example = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(example)
+
+
+class Glitch(example.ConstantVelocity):
+    def scenario(self, steps, seed):
+        sc = super().scenario(steps, seed)
+        sc.z[2] = 3e38
+        return sc
+'''
+
+
+@pytest.mark.verilator
+@pytest.mark.xdist_group("imm_cosim")
+@pytest.mark.parametrize("processor", ["python", "c"])
+def test_fault_is_one_line_exit_3(build_root, tmp_path, processor):
+    """A numerical fault in the core: one line naming the iteration and the bit, exit 3, from
+    either processor, and no cosim.npz (the example's core: test_documented_commands' build)."""
+    (tmp_path / "glitch.py").write_text(GLITCH)
+    work = build_root / "imm_cosim"
+    proc = run_command("--app", "glitch.py:Glitch", "--steps", 4, "--processor", processor, "-o", work, cwd=tmp_path)
+    assert proc.returncode == 3 and not proc.stdout and proc.stderr.count("\n") == 1, proc.stdout + proc.stderr
+    assert proc.stderr.startswith("cosim: error: the core raised a numerical fault at iteration 2: iterate raised "
+                                  "err_pivot (a pivot not positive"), proc.stderr
+    assert not (work / "imm_app" / "cosim.npz").exists()
