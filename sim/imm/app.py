@@ -56,7 +56,7 @@ class ImmApplication:
     and define :meth:`scenario`.
     """
 
-    models: list = []
+    models: tuple = ()
     pi = mu0 = x0 = P0 = None
 
     def scenario(self, steps: int, seed: int):
