@@ -55,6 +55,13 @@ ELSEWHERE = {
     "kfgen schur --size 2 -o out/schur": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
     "kfgen imm --models 3 --states 2 --measurements 2 --pes 2 --name imm_small -o out/imm_small":
         "tests/imm/test_imm_core.py::test_files_and_manifest",
+    "kfgen kf -o out/kf": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
+    "kfgen kf --states 4 --measurements 2 --inputs 1 --pes 2 --streams --name kf_small -o out/kf_small":
+        "tests/kf/test_kf_core.py::test_files_and_manifest",
+    "kfgen kf --states 3 --measurements 1 --inputs 1 --steady-gain --name kfs -o out/kfs":
+        "tests/kf/test_kf_cli.py::test_steady_gain_manifest",
+    "python -m kfgen.sim.kf.stability": "tests/kf/test_kf_golden.py::test_stability_command_prints_the_table",
+    "python -m kfgen.gen.bench_kf": "tests/kf/test_kf_bench.py::test_bench_prints_the_table",
     "kfgen fusesoc --cores-root cores run --target lint kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_lint_target",
     "kfgen fusesoc --cores-root cores run --target sim kfgen:cores:trk":
