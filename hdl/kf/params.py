@@ -55,9 +55,9 @@ class KfParams:
     streams : bool
         The optional AXI4-Stream ports: z (and u) in, x and P's diagonal out.
     steady_gain : bool
-        A fixed gain K in the buffer (written by software, or computed at generation from the
-        discrete algebraic Riccati equation): no P, Q, R, S; an iteration is a few
-        multiply-adds an entry.
+        A fixed gain K in the buffer, written by software (the discrete algebraic Riccati
+        equation's, :func:`kfgen.sim.kf.reference.steady_gain`, computed in float64): no P, Q,
+        R, S; an iteration is a few multiply-adds an entry.
     address_width : int or None
         AXI byte-address width; ``None``: the smallest that holds the map (replaced by it).
     target_mhz : float or None

@@ -49,8 +49,8 @@ n^2 m + n^3 + (n + m) n (n + 1) / 2 + n m^2 multiply-adds where the symmetric fo
 m n (n + 1) / 2, and three products of chain after K instead of one; the symmetric form is
 kept in :data:`UPDATES` (``KfSizes.update``) for that measurement.
 
-**Steady-state gain** (``steady_gain``): K is in the buffer (software writes it, or the gain
-of the discrete algebraic Riccati equation is put there at generation,
+**Steady-state gain** (``steady_gain``): K is in the buffer (software writes it: the gain of
+the discrete algebraic Riccati equation in float64 is
 :func:`kfgen.sim.kf.reference.steady_gain`); there is no P, Q, R or S. The filter
 x = x^- + K (z - H x^-), x^- = F x + B u, is x = A x + G u + K z with A = (I - K H) F =
 F - K (H F) and G = (I - K H) B = B - K (H B), which change only when software writes F, B,
