@@ -33,8 +33,8 @@ __all__ = ["VITIS_US", "ENGINE_FMAX_MHZ", "CONFIGS", "row", "table", "main"]
 #: Vitis Vision KalmanFilter, N_STATE = 16 (taken as 16 x 16 x 16), an iteration at 300 MHz.
 VITIS_US = 550.0
 #: The engine's lowest measured ECP5-85 Fmax (nextpnr, seed 1): the IMM core at P = 1
-#: (README.md; the UKF's engine cores measure 98.6-109.3 MHz at P = 1 and 2). A KF core's own
-#: Fmax was not measured: the same engine, PEs and units, with a different program store.
+#: (README.md; the UKF's engine cores measure 98.6-109.3 MHz at P = 1 and 2, the default KF
+#: core 108.2 MHz at P = 1, seed 1, docs/kf.md): the n = 16, P = 4 cores were not placed.
 ENGINE_FMAX_MHZ = 95.8
 
 #: (n, m, nu, P, steady gain) of the table.
