@@ -77,6 +77,11 @@ def _imm_map(params):
     return imm_map(params)
 
 
+def _kf_map(params):
+    from kfgen.hdl.kf.regmap import kf_map
+    return kf_map(params)
+
+
 def _ukf_driver(params):
     from .cdriver import ukf_driver
     return ukf_driver(params.name, params.format.name)
@@ -129,6 +134,7 @@ _HOOKS = {
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map, _imm_driver), "extra": _with_map},
+    "kf": {"smoke": _id_register_reads, "documents": _map_documents(_kf_map), "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor

@@ -114,6 +114,17 @@ class Prologue:
     pre: int
     elements: tuple
 
+    @classmethod
+    def of(cls, progs) -> Prologue | None:
+        """The prologue of a core's programs (their ``steps``, ``layout`` and ``prologue``:
+        ``(pre, main, regions)`` by name, or ``None``), or ``None``."""
+        if progs.prologue is None:
+            return None
+        pre, main, regions = progs.prologue
+        names = list(progs.steps)
+        return cls(names.index(main), names.index(pre),
+                   tuple((progs.layout[r].base, progs.layout[r].size) for r in regions))
+
 
 def stream_members(spec: StreamSpec) -> dict:
     """The AXI4-Stream ports of ``spec``, named as cocotbext-axi's ``AxiStreamBus.from_prefix``

@@ -14,6 +14,7 @@ from ..arith.float.format import FloatFormat
 from ..arith.float.params import OMIT_NONE, check_target
 from ..describe import ParamError
 from ..engine.params import check_bus, check_div_sqrt, check_format, check_generation, check_work
+from .regmap import kf_map
 
 __all__ = ["KfParams", "STATES_MAX", "MEASUREMENTS_MAX", "INPUTS_MAX", "PES_MAX"]
 
@@ -54,12 +55,11 @@ class KfParams:
     streams : bool
         The optional AXI4-Stream ports: z (and u) in, x and P's diagonal out.
     steady_gain : bool
-        A fixed gain K in the buffer (written by software, or computed at generation from the
-        discrete algebraic Riccati equation): no P, Q, R, S; an iteration is a few
-        multiply-adds an entry.
+        A fixed gain K in the buffer, written by software (the discrete algebraic Riccati
+        equation's, :func:`kfgen.sim.kf.reference.steady_gain`, computed in float64): no P, Q,
+        R, S; an iteration is a few multiply-adds an entry.
     address_width : int or None
-        AXI byte-address width; ``None``: the smallest that holds the map (the map's check
-        comes with the register map).
+        AXI byte-address width; ``None``: the smallest that holds the map (replaced by it).
     target_mhz : float or None
         A clock in MHz to pipeline the engine's units for, as the UKF's; ``None``: the units'
         defaults.
@@ -104,6 +104,8 @@ class KfParams:
         check_work(n * n if self.steady_gain else n * n * (3 * n + 1), self.pes, "states", at_least=True)
         object.__setattr__(self, "format", check_format(self.format))
         check_bus(self)
+        # the map checks that it fits, and gives the width it needs
+        object.__setattr__(self, "address_width", kf_map(self).address_width)
 
     @property
     def n(self) -> int:

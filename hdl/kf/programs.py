@@ -49,8 +49,8 @@ n^2 m + n^3 + (n + m) n (n + 1) / 2 + n m^2 multiply-adds where the symmetric fo
 m n (n + 1) / 2, and three products of chain after K instead of one; the symmetric form is
 kept in :data:`UPDATES` (``KfSizes.update``) for that measurement.
 
-**Steady-state gain** (``steady_gain``): K is in the buffer (software writes it, or the gain
-of the discrete algebraic Riccati equation is put there at generation,
+**Steady-state gain** (``steady_gain``): K is in the buffer (software writes it: the gain of
+the discrete algebraic Riccati equation in float64 is
 :func:`kfgen.sim.kf.reference.steady_gain`); there is no P, Q, R or S. The filter
 x = x^- + K (z - H x^-), x^- = F x + B u, is x = A x + G u + K z with A = (I - K H) F =
 F - K (H F) and G = (I - K H) B = B - K (H B), which change only when software writes F, B,
@@ -61,9 +61,9 @@ entry's sum reads all of the old x): n (n + nu + m) multiply-adds and a chain of
 where the two-stage form takes n (n + nu + 2m) and a chain of three (x^-, y, x).
 
 **Cycles** of an iteration, binary32, m = 2, nu = 1 (``tests/kf/test_kf_program.py`` prints
-them with the bounds): n = 4: 565, 434, 397 at P = 1, 2, 4 (the steady gain's 75); n = 16:
-15,609, 8,222, 4,273 (the steady gain's 363, 195, 195). At n = 16, P = 4 that is 42.7 us at
-100 MHz against the 0.55 ms of Vitis' KalmanFilter (N = 16 at 300 MHz), 12.9 times faster;
+them with the bounds): n = 4: 565, 437, 397 at P = 1, 2, 4 (the steady gain's 75); n = 16:
+15,597, 8,250, 4,233 (the steady gain's 357, 195, 195). At n = 16, P = 4 that is 42.3 us at
+100 MHz against the 0.55 ms of Vitis' KalmanFilter (N = 16 at 300 MHz), 13.0 times faster;
 with m = nu = 16 (35,104 multiply-adds, beyond what generates) 10,363 cycles, 104 us, 5.3
 times.
 
@@ -158,11 +158,11 @@ def build_kf(sizes: KfSizes, fmt="binary32") -> KfPrograms:
     P = None if steady else lay.add("P", n, n, "bus")
     F = lay.add("F", n, n, "bus")
     B = lay.add("B", n, nu, "bus") if nu else None
-    u = lay.add("u", nu, 1, "bus") if nu else None
     Q = None if steady else lay.add("Q", n, n, "bus")
     H = lay.add("H", m, n, "bus")
     R = None if steady else lay.add("R", m, m, "bus")
     z = lay.add("z", m, 1, "bus")
+    u = lay.add("u", nu, 1, "bus") if nu else None  # after z: one stream beat writes both
     K = lay.add("K", n, m, "bus" if steady else "work")
     if steady:
         return _steady(sizes, fmt, lay, x, F, B, u, H, z, K)

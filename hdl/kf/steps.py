@@ -4,6 +4,7 @@ core, its manifest and the golden model in the tests cannot disagree."""
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.machine import machine as engine_machine
 from ..engine.machine import schedules as engine_schedules
 from ..engine.params import check_work
@@ -12,8 +13,10 @@ from .programs import KfPrograms, KfSizes, build_kf
 __all__ = ["programs", "machine", "schedules"]
 
 
+@once_per_params
 def programs(params) -> KfPrograms:
-    """The memory layout and the iteration's program."""
+    """The memory layout and the iteration's program (and the steady gain's prologue), built
+    once per parameter object."""
     return build_kf(KfSizes(params.n, params.m, params.nu, params.steady_gain), params.format)
 
 

@@ -81,8 +81,8 @@ def run_reference(F, H, Q, R, x0, P0, zs, B=None, us=None, K=None) -> KfRun:
 
 def steady_gain(F, H, Q, R) -> np.ndarray:
     """The steady-state gain K = P H^T (H P H^T + R)^-1, P the prior covariance solving the
-    discrete algebraic Riccati equation (scipy, float64): what ``steady_gain`` puts in the
-    buffer at generation."""
+    discrete algebraic Riccati equation (scipy, float64): what software writes into a
+    ``steady_gain`` core's K."""
     from scipy.linalg import solve_discrete_are  # deferred: scipy only for the steady gain
     P = solve_discrete_are(np.asarray(F, float).T, np.asarray(H, float).T, Q, R)
     return np.linalg.solve(H @ P @ H.T + R, H @ P).T

@@ -59,6 +59,13 @@ ELSEWHERE = {
         "tests/imm/test_imm_cosim.py::test_documented_commands",
     "python -m kfgen.gen.cosim imm --app docs/examples/imm_cv.py:ConstantVelocity --steps 3 --processor c "
     "-o build/imm-cosim": "tests/imm/test_imm_cosim.py::test_documented_commands",
+    "kfgen kf -o out/kf": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
+    "kfgen kf --states 4 --measurements 2 --inputs 1 --pes 2 --streams --name kf_small -o out/kf_small":
+        "tests/kf/test_kf_core.py::test_files_and_manifest",
+    "kfgen kf --states 3 --measurements 1 --inputs 1 --steady-gain --name kfs -o out/kfs":
+        "tests/kf/test_kf_cli.py::test_steady_gain_manifest",
+    "python -m kfgen.sim.kf.stability": "tests/kf/test_kf_golden.py::test_stability_command_prints_the_table",
+    "python -m kfgen.gen.bench_kf": "tests/kf/test_kf_bench.py::test_bench_prints_the_table",
     "kfgen fusesoc --cores-root cores run --target lint kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_lint_target",
     "kfgen fusesoc --cores-root cores run --target sim kfgen:cores:trk":

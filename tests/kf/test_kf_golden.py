@@ -82,3 +82,13 @@ def test_long_run_binary32():
 @pytest.mark.full
 def test_long_run_binary32_full():
     _long_run(10_000)
+
+
+@pytest.mark.full
+def test_stability_command_prints_the_table(capsys):
+    """docs/kf.md's ``python -m kfgen.sim.kf.stability``: Joseph's rows never indefinite."""
+    from kfgen.sim.kf.stability import main
+
+    main([])
+    rows = [line.split(" | ") for line in capsys.readouterr().out.splitlines() if "| joseph |" in line]
+    assert len(rows) == 3 and all(r[2] == "0" for r in rows)

@@ -33,9 +33,9 @@ def test_layout():
     gain's, B and u with inputs only."""
     def bus(**kw):
         return [r.name for r in programs(KfParams(**kw)).layout.regions.values() if r.kind == "bus"]
-    assert bus(inputs=1) == ["x", "P", "F", "B", "u", "Q", "H", "R", "z"]
+    assert bus(inputs=1) == ["x", "P", "F", "B", "Q", "H", "R", "z", "u"]
     assert bus() == ["x", "P", "F", "Q", "H", "R", "z"]
-    assert bus(inputs=2, steady_gain=True) == ["x", "F", "B", "u", "H", "z", "K"]
+    assert bus(inputs=2, steady_gain=True) == ["x", "F", "B", "H", "z", "u", "K"]
 
 
 @pytest.mark.parametrize("n,m,nu", [(4, 2, 1), (16, 2, 1), (3, 1, 0)])

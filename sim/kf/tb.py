@@ -1,0 +1,252 @@
+"""cocotb testbench of a generated linear Kalman filter core (``kfgen kf``), driven as software
+would drive it through the engine's harness (:class:`kfgen.sim.engine.tb.TB`: cocotbext-axi's
+``AxiMaster``, bursts for the buffer, single beats for the registers, random idle cycles and
+backpressure on every channel, AXI handshake checkers).
+
+Every word read back is compared with the bit-exact golden model
+(:func:`kfgen.sim.linalg.exec.run` on the same programs), every iteration's cycles with the
+manifest's ``cycles`` (with a steady gain, ``gain`` + ``iterate`` after a write to F, B, H or K).
+
+Environment: ``KFGEN_TB_MANIFEST``, the core's ``TOP.json``; ``KFGEN_TB_SEED`` (default 1);
+``KFGEN_TB_ITERATIONS`` (default 4).
+"""
+
+from __future__ import annotations
+
+import os
+
+import cocotb
+import numpy as np
+from cocotb.triggers import ClockCycles, FallingEdge, RisingEdge
+from cocotbext.axi import AxiResp
+
+from kfgen.hdl.kf.params import KfParams
+from kfgen.hdl.kf.steps import programs
+from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
+from kfgen.sim.linalg.exec import to_words
+from kfgen.sim.streams import StreamChecker
+
+from .reference import steady_gain
+
+__all__ = ["TB_MODULE", "KfTB", "system"]
+
+#: This testbench as :func:`kfgen.sim.engine.run.run_tb`'s ``module``.
+TB_MODULE = "kfgen.sim.kf.tb"
+
+
+class KfTB(TB):
+    PARAMS = KfParams
+    PROGRAMS = staticmethod(programs)
+
+
+def system(params, rng) -> dict:
+    """A test model for any n, m, nu: a chain of integrators as F, H measuring every
+    (n / m)-th state, B driving the last states, correlated R, a random positive definite P0
+    (with a steady gain K, the DARE's). Float64 arrays keyed by region name: the regions the
+    buffer holds but z and u."""
+    n, m, nu = params.n, params.m, params.nu
+    F = np.eye(n) + 0.1 * np.eye(n, k=1)
+    H = np.zeros((m, n))
+    for i in range(m):
+        H[i, (i * n) // m] = 1.0
+    Q = np.eye(n) * 0.01
+    R = np.eye(m) * 0.2 + 0.05 * (1 - np.eye(m))
+    A = rng.normal(size=(n, n)) * 0.2
+    values = {"x": rng.normal(size=n), "P": np.eye(n) * 0.5 + A @ A.T, "F": F, "B": np.zeros((n, nu)),
+              "Q": Q, "H": H, "R": R}
+    for j in range(nu):
+        values["B"][n - 1 - j % n, j] = 0.1
+    if params.steady_gain:
+        values["K"] = steady_gain(F, H, Q, R)
+    lay = programs(params).layout
+    return {name: values[name] for name, reg in lay.regions.items() if name in values and reg.kind == "bus"}
+
+
+async def load(tb, values):
+    for name, v in values.items():
+        await tb.put(name, v)
+
+
+async def iterate(tb, z, u=()):
+    """Write z (and u), run one iteration (checked: status, cycles), read x (and P) word for
+    word against the golden model; the status, the cycles and the values read by region."""
+    await tb.put("z", z)
+    if tb.params.nu:
+        await tb.put("u", u)
+    st, cycles = await tb.step("iterate")
+    out = {name: await tb.check(name) for name in ("x", "P") if name in tb.mems}
+    return st, cycles, out
+
+
+class Truth:
+    """The simulated system the measurements come from."""
+
+    def __init__(self, tb, values):
+        self.tb, self.values = tb, values
+        self.x = values["x"] + tb.rng.normal(0, 0.3, tb.params.n)
+
+    def next(self):
+        """The next (z, u)."""
+        p, v, rng = self.tb.params, self.values, self.tb.rng
+        u = rng.normal(size=p.nu)
+        self.x = v["F"] @ self.x + (v["B"] @ u if p.nu else 0)  # (no B without inputs)
+        return v["H"] @ self.x + rng.normal(0, 0.3, p.m), u
+
+
+@cocotb.test()
+async def iterations(dut):
+    """ID, then several iterations with every word checked and the cycles measured; P stays
+    exactly symmetric."""
+    tb = await setup(dut, KfTB)
+    p = tb.params
+    ident = await tb.read_reg("ID") | await tb.read_reg("ID", 1) << 32
+    for fd in tb.regs["ID"]["fields"]:
+        assert ident >> fd["lsb"] & ((1 << fd["width"]) - 1) == fd["reset"], fd["name"]
+    assert (ident >> 32 & 0xFF, ident >> 40 & 0xFF, ident >> 48 & 0xFF) == (p.n, p.m, p.nu)
+    values = system(p, tb.rng)
+    await load(tb, values)
+    truth = Truth(tb, values)
+    for it in range(int(os.environ.get("KFGEN_TB_ITERATIONS", "4"))):
+        st, cycles, out = await iterate(tb, *truth.next())
+        assert not (st.pivot or st.nan), st
+        if "P" in out:
+            assert np.array_equal(out["P"], out["P"].T)  # one triangle, mirrored
+        dut._log.info("iteration %d: %d cycles, x %s", it, cycles, np.round(out["x"].ravel(), 3))
+    if p.steady_gain:  # a new gain: the prologue runs again before the next iteration
+        await tb.put("K", values["K"] * 0.5)
+        st, cycles, _ = await iterate(tb, *truth.next())
+        assert cycles == tb.manifest["cycles"]["gain"] + tb.manifest["cycles"]["iterate"]
+
+
+async def clean_iteration(tb):
+    """Freshly loaded model and one iteration, every word against the golden model (what a
+    fault campaign's sequence must leave the core able to do)."""
+    values = system(tb.params, tb.rng)
+    await load(tb, values)
+    st, _, _ = await iterate(tb, *Truth(tb, values).next())
+    assert not (st.pivot or st.nan), st
+
+
+@cocotb.test()
+async def fault_campaign(dut):
+    """Seeded random sequences of bus traffic, starts, soft and bus resets, each followed by a
+    clean iteration (:mod:`kfgen.sim.engine.campaign`)."""
+    tb = await setup(dut, KfTB)
+    counts = await engine_campaign(tb, clean_iteration, CLOCK_NS)
+    dut._log.info("fault campaign: %s", counts)
+
+
+@cocotb.test()
+async def errors(dut):
+    """Holes, the read-only ID, strobes, writes and start while busy, reads while busy, soft
+    reset mid-iteration, an innovation covariance S that is not positive definite
+    (err_pivot); a wait with no start ends at the watchdog's bound."""
+    tb = await setup(dut, KfTB)
+    p = tb.params
+    axi = tb.axi
+    await holes(tb)
+    assert (await axi.write(tb.mems["z"]["offset"] + 1, b"\x12")).resp == AxiResp.SLVERR
+    values = system(p, tb.rng)
+    await load(tb, values)
+    z, u = Truth(tb, values).next()
+    await tb.put("z", z)
+    if p.nu:
+        await tb.put("u", u)
+    # while busy: a buffer write answers SLVERR and changes nothing; start is refused with
+    # err_busy; reads wait for a free port and answer OKAY (an iteration never writes F, H, z)
+    ran = tb.prologue.steps("iterate")
+    assert await tb.start("iterate") == AxiResp.OKAY
+    assert await tb.read_reg("STATUS") & 1, "busy"
+    await tb.put("z", np.ones(p.m), expect=AxiResp.SLVERR)
+    assert await tb.start("iterate") == AxiResp.SLVERR
+    assert dut.irq.value == 1  # err_busy
+    for name in ("F", "H", "z"):
+        await tb.check(name)
+    tb.prologue.run("iterate", tb.gold, ran)
+    await wait_idle(tb, "iterate")
+    status = await tb.read_reg("STATUS")
+    assert status == tb.bits("STATUS", done=1, err_busy=1), hex(status)
+    for name in ("x", "P"):
+        if name in tb.mems:
+            await tb.check(name)
+    await tb.write_reg("STATUS", status)
+    # soft reset mid-iteration: idle at once, STATUS clear, no done, no irq
+    cycles = tb.manifest["cycles"]["iterate"]
+    assert await tb.start("iterate") == AxiResp.OKAY
+    await ClockCycles(dut.clk, cycles // 2)
+    assert await tb.write_reg("CTRL", tb.bits("CTRL", reset=1)) == AxiResp.OKAY
+    assert await tb.read_reg("STATUS") == 0
+    await ClockCycles(dut.clk, cycles)
+    assert await tb.read_reg("STATUS") == 0 and dut.irq.value == 0
+    # the buffer now holds some state of the stopped iteration (the soft reset makes a
+    # prologue run again): load it again, and run
+    tb.prologue.stale = True
+    await load(tb, values)
+    await iterate(tb, z, u)
+    if not p.steady_gain:  # a measurement noise that is not positive definite makes S indefinite
+        await load(tb, values)
+        await tb.put("R", -np.eye(p.m) * 50.0)
+        st, _, _ = await iterate(tb, z, u)
+        assert st.pivot
+        assert not await tb.read_reg("STATUS") & 1
+    await watchdog_fires(tb, "iterate")
+
+
+@cocotb.test()
+async def stream_iterations(dut):
+    """A core with stream ports (``--streams``), fed as a design without a processor would:
+    the model through the bus once, then (z, u) on ``s_axis`` (cocotbext-axi's
+    AxiStreamSource) and the estimates from ``m_axis`` (AxiStreamSink, with backpressure):
+    every field word for word against the golden model, ``tuser`` against its status, the
+    latency from the transfer to the result against the manifest."""
+    from cocotbext.axi import AxiStreamBus, AxiStreamFrame, AxiStreamSink, AxiStreamSource
+
+    tb = await setup(dut, KfTB)
+    p, lay = tb.params, tb.layout
+    spec = tb.manifest["streams"]
+    values = system(p, tb.rng)
+    await load(tb, values)
+    truth = Truth(tb, values)
+    source = AxiStreamSource(AxiStreamBus.from_prefix(dut, "s_axis"), dut.clk, dut.rst)
+    sink = AxiStreamSink(AxiStreamBus.from_prefix(dut, "m_axis"), dut.clk, dut.rst)
+    sink.set_pause_generator(iter(([1] * 5 + [0] * 2) * 1000))  # backpressure
+    checks = [StreamChecker.axis(dut, "s_axis"), StreamChecker.axis(dut, "m_axis")]
+    tb.checkers += checks
+    steps = int(os.environ.get("KFGEN_TB_ITERATIONS", "3"))
+    for it in range(steps):
+        z, u = truth.next()
+        words = to_words(tb.fmt, np.r_[z, u])
+        base = lay["z"].base
+        tb.gold[base:base + len(words)] = words  # z then u: one run of the buffer
+        ran = tb.prologue.steps("iterate")
+        st = tb.prologue.run("iterate", tb.gold, ran)
+        data = 0
+        for f, w in zip(spec["s_axis"]["fields"], words):
+            data |= w << f["lsb"]
+        await source.send(AxiStreamFrame(data.to_bytes(spec["s_axis"]["tdata_width"] // 8, "little")))
+        await FallingEdge(dut.s_axis_tready)
+        taken = tb.now()
+        await RisingEdge(dut.m_axis_tvalid)
+        latency = tb.now() - taken + 1
+        frame = await sink.recv()
+        value = int.from_bytes(bytes(frame.tdata), "little")
+        got = [value >> f["lsb"] & ((1 << f["width"]) - 1) for f in spec["m_axis"]["fields"]]
+        x = lay["x"]
+        want = [tb.gold[x(i)] for i in range(p.n)]
+        if not p.steady_gain:
+            want += [tb.gold[lay["P"](i, i)] for i in range(p.n)]
+        assert got == want, (it, [hex(g) for g in got], [hex(w) for w in want])
+        user = frame.tuser if isinstance(frame.tuser, int) else frame.tuser[0]
+        assert user == (st.pivot | st.nan << 1), (it, user, st)
+        extra = sum(tb.manifest["cycles"][s] for s in ran if s != "iterate")
+        assert latency == spec["latency_cycles"] + extra, (latency, spec["latency_cycles"], extra)
+        dut._log.info("measurement %d: estimate after %d cycles", it, latency)
+        status = await tb.read_reg("STATUS")
+        assert status & tb.bits("STATUS", done=1) and not status & 1, hex(status)
+        await tb.write_reg("STATUS", status)
+    for name in ("x", "P", "z", "u"):
+        if name in tb.mems:
+            await tb.check(name)
+    assert [c.transfers for c in checks] == [steps, steps], [c.transfers for c in checks]
+    assert checks[1].waits > 0  # the sink's backpressure held the estimate at least once
