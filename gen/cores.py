@@ -134,7 +134,8 @@ _HOOKS = {
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map, _imm_driver), "extra": _with_map},
-    "kf": {"smoke": _id_register_reads, "documents": _map_documents(_kf_map), "extra": _with_map},
+    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _id_register_reads, "documents": _map_documents(_kf_map),
+           "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor
