@@ -38,6 +38,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import TRIG_FIELDS, Machine, chain_bound
 from kfgen.hdl.ukf.descriptor import CORE
@@ -126,8 +128,6 @@ SYSTEM_STEPS = 5
 def _system(work: Path, top: str, cache: Path, beats: str) -> dict:
     """The nanosatellite on one core, the Python processor over AXI: the mean cycles of an
     iteration per part, and the simulation's speed."""
-    import numpy as np
-
 
     model = build_core(work, top, cache)
     npz = work / f"system_{beats}.npz"

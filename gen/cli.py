@@ -26,10 +26,12 @@ import os
 import re
 import sys
 import textwrap
+import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 
 from kfgen.hdl.describe import CoreDescriptor, Doc, ParamError
+from kfgen.sim.toolchain import ToolMissing, lint, run_fusesoc, verilator_version
 
 from . import __version__
 from .api import generate_core, params_for
@@ -202,8 +204,6 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
 # ---------------------------------------------------------------------------- values
 
 def _read_config(path: str, fields: Mapping) -> dict:
-    import tomllib
-
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
@@ -284,8 +284,6 @@ def _count(messages: list[str]) -> str:
 
 def _lint(paths: list[str]) -> int:
     """``kfgen lint``: Verilator ``-Wall`` with each core's own waivers; 0 when clean."""
-    from kfgen.sim.toolchain import ToolMissing, lint, verilator_version
-
     targets = []
     for text in paths:
         given = Path(text)
@@ -328,8 +326,6 @@ def _flow(args: argparse.Namespace) -> FlowOptions:
 
 def _fusesoc(argv: list[str]) -> int:
     """``kfgen fusesoc ...``: FuseSoC with the pinned Verilator and Yosys first on PATH."""
-    from kfgen.sim.toolchain import ToolMissing, run_fusesoc
-
     try:
         return run_fusesoc(argv).returncode
     except ToolMissing as exc:

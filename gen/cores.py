@@ -19,6 +19,15 @@ from functools import cache
 import kfgen.hdl
 
 from kfgen.hdl.describe import CoreDescriptor
+from kfgen.hdl.imm.regmap import imm_map
+from kfgen.hdl.kf.regmap import kf_map
+from kfgen.hdl.ukf.core import stream_spec
+from kfgen.hdl.ukf.regmap import ukf_map
+from kfgen.hdl.ukf.steps import programs
+
+from .cdriver import id_fields, imm_driver, ukf_driver
+from .regdoc import documents, map_manifest
+from .smoke import id_register_reads
 
 __all__ = ["discover", "bind"]
 
@@ -47,59 +56,37 @@ def _smoke(module):
 
 def _id_register_reads(params, manifest):
     # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
-    from .smoke import id_register_reads
     return id_register_reads(manifest)
 
 
 def _with_map(extra):
     """``extra`` with the register map's manifest entries (the component's ``regmap``)."""
     def with_map(params, component):
-        from .regdoc import map_manifest
         return {**map_manifest(component.regmap), **extra(params, component)}
     return with_map
 
 
 def _map_documents(regmap, more=lambda params: {}):
     """``TOP.rdl``, ``TOP.h``, ``TOP.md`` of the map ``regmap(params)``, and ``more``."""
-    def documents(params):
-        from .regdoc import documents
+    def with_more(params):
         return {**documents(regmap(params), params.name), **more(params)}
-    return documents
-
-
-def _ukf_map(params):
-    from kfgen.hdl.ukf.regmap import ukf_map
-    return ukf_map(params)
-
-
-def _imm_map(params):
-    from kfgen.hdl.imm.regmap import imm_map
-    return imm_map(params)
-
-
-def _kf_map(params):
-    from kfgen.hdl.kf.regmap import kf_map
-    return kf_map(params)
+    return with_more
 
 
 def _ukf_driver(params):
-    from .cdriver import ukf_driver
     return ukf_driver(params.name, params.format.name)
 
 
 def _imm_driver(params):
-    from .cdriver import id_fields, imm_driver
-    return imm_driver(params.name, params.format.name, id_fields(_imm_map(params)))
+    return imm_driver(params.name, params.format.name, id_fields(imm_map(params)))
 
 
 def _ukf_documents(params):
     """The UKF's map documents and C driver; with stream ports, their fields in ``TOP.md``
     and as ``TOP_S_AXIS_*``/``TOP_M_AXIS_*`` macros in the driver's header."""
-    docs = _map_documents(_ukf_map, _ukf_driver)(params)
+    docs = _map_documents(ukf_map, _ukf_driver)(params)
     if not params.streams:
         return docs
-    from kfgen.hdl.ukf.core import stream_spec
-    from kfgen.hdl.ukf.steps import programs
     spec = stream_spec(params, programs(params))
     top, width = params.name, params.fmt.width
     md = ["", "## Stream ports", "",
@@ -133,8 +120,8 @@ _HOOKS = {
     "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads,
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
-            "documents": _map_documents(_imm_map, _imm_driver), "extra": _with_map},
-    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _id_register_reads, "documents": _map_documents(_kf_map),
+            "documents": _map_documents(imm_map, _imm_driver), "extra": _with_map},
+    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _id_register_reads, "documents": _map_documents(kf_map),
            "extra": _with_map},
 }
 

@@ -150,7 +150,7 @@ def to_systemrdl(regmap, top: str) -> str:
 
 def compile_systemrdl(text: str, path: Path):
     """Compile and elaborate SystemRDL ``text``, written to ``path``; the top addrmap node."""
-    from systemrdl import RDLCompiler
+    from systemrdl import RDLCompiler  # deferred: SystemRDL/PeakRDL, 0.5 s, only for a map's documents
 
     path.write_text(text, encoding="utf-8")
     rdlc = RDLCompiler()
@@ -189,7 +189,7 @@ _FOOTER = "#ifdef __cplusplus\n}\n#endif"
 
 def c_header(node, regmap, top: str, work: Path) -> str:
     """The C header (PeakRDL-cheader, then the macros it does not write) of compiled ``node``."""
-    from peakrdl_cheader.c_standards import CStandard
+    from peakrdl_cheader.c_standards import CStandard  # deferred: SystemRDL/PeakRDL, 0.5 s, only for a map's documents
     from peakrdl_cheader.exporter import CHeaderExporter
 
     path = work / f"{top}.h"
@@ -204,7 +204,7 @@ def c_header(node, regmap, top: str, work: Path) -> str:
 
 def markdown(node, top: str, work: Path) -> str:
     """The Markdown register document (PeakRDL-markdown) of compiled ``node``."""
-    from peakrdl_markdown import MarkdownExporter
+    from peakrdl_markdown import MarkdownExporter  # deferred: SystemRDL/PeakRDL, 0.5 s, only for a map's documents
 
     path = work / f"{top}.md"
     MarkdownExporter().export(node, str(path))

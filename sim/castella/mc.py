@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -56,8 +57,6 @@ def _scenario(rtl: Path, manifest: dict, name: str, runs: int, seed: int) -> dic
 def run(build_dir: Path, runs: int = RUNS, seed: int = SEED, runner=None) -> dict:
     """Every scenario, each a task on ``runner`` (:mod:`kfgen.sim.cluster`; default: this
     process), into ``build_dir/verilator_mc.npz``."""
-    import json
-
     build_dir = Path(build_dir)
     rtl = build_dir / TOP
     subprocess.run([str(Path(sys.executable).parent / "kfgen"), "castella", "--tracks", "64",

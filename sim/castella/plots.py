@@ -99,7 +99,7 @@ def summary(mc: dict, sc: Scenario, filt: str) -> dict:
 
 
 def _figure(p: CastellaParams, sc: Scenario, mc: dict, filters, path: Path):
-    import matplotlib
+    import matplotlib  # deferred: matplotlib (the [dev] extras), only to draw
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

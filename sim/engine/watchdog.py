@@ -61,7 +61,7 @@ async def poll(read, done, pause, now, step: str, cycles: int):
 async def wait_irq(dut, dog: Watchdog, now) -> None:
     """Until ``dut.irq`` is high, at most to ``dog``'s bound (then :class:`Expired`);
     ``now()`` counts ``dut.clk``'s cycles."""
-    from cocotb.triggers import ClockCycles, First, RisingEdge
+    from cocotb.triggers import ClockCycles, First, RisingEdge  # deferred: cocotb, only in a simulation
 
     while not int(dut.irq.value):
         dog.check(now())

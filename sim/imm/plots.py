@@ -45,7 +45,7 @@ RTL = "RTL core (binary32, Verilator)"
 
 
 def _pyplot():
-    import matplotlib
+    import matplotlib  # deferred: matplotlib (the [dev] extras), only to draw
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt

@@ -349,7 +349,7 @@ def run_reference(system: ImmSystem, mu0, xs0, Ps0, zs) -> ImmRun:
 
 
 def _filterpy_kf(model: ImmModel, x0, P0):
-    from filterpy.kalman import KalmanFilter
+    from filterpy.kalman import KalmanFilter  # deferred: filterpy (the [dev] extras), the third party
 
     kf = KalmanFilter(dim_x=model.n, dim_z=model.d)
     kf.F, kf.Q, kf.H, kf.R = (np.array(a) for a in (model.F, model.Q, model.H, model.R))
@@ -363,7 +363,7 @@ def run_filterpy(system: ImmSystem, mu0, xs0, Ps0, zs) -> ImmRun:
     ``update`` updates every filter (Joseph form), weighs ``cbar`` by each filter's
     likelihood (unscaled, raised to the smallest normal float where exp underflows) and
     combines."""
-    from filterpy.kalman import IMMEstimator
+    from filterpy.kalman import IMMEstimator  # deferred: filterpy (the [dev] extras), the third party
 
     mu0, xs0, Ps0, zs = _initial(system, mu0, xs0, Ps0, zs)
     filters = [_filterpy_kf(m, x, P) for m, x, P in zip(system.models, xs0, Ps0)]

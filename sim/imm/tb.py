@@ -25,6 +25,8 @@ from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
 from kfgen.sim.engine.campaign import engine_campaign
 from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
+from kfgen.sim.imm.golden import buffer_values
+from kfgen.sim.imm.scenario import SEED, satlink
 from kfgen.sim.linalg.exec import run
 
 #: The regions software writes before the first iteration, in buffer order.
@@ -186,9 +188,6 @@ async def scenario(dut):
     model probabilities, combined and per-model states to ``KFGEN_IMM_OUT`` (``.npz``).
 
     Environment: ``KFGEN_STEPS`` (default 50), ``KFGEN_SEED`` (the scenario's, default its own)."""
-    from kfgen.sim.imm.golden import buffer_values
-    from kfgen.sim.imm.scenario import SEED, satlink
-
     tb = await setup(dut, ImmTB)
     p = tb.params
     steps = int(os.environ.get("KFGEN_STEPS", "50"))

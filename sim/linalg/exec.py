@@ -10,11 +10,13 @@ whatever the schedule.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 from kfgen.hdl.linalg.isa import Check
 from kfgen.hdl.linalg.program import Dot, Program
-from kfgen.sim.float_ref import ref_op
+from kfgen.sim.float_ref import decode, ref_op, round_to_format
 from kfgen.sim.fpu.exp_model import exp_model
 from kfgen.sim.fpu.trig_model import trig_word
 
@@ -100,10 +102,6 @@ def max_value(fmt, a: int, b: int) -> tuple[int, bool]:
 
 def to_words(fmt, values) -> list[int]:
     """Float64 values rounded once to ``fmt``'s words (NaN: the canonical NaN)."""
-    import math
-    from fractions import Fraction
-
-    from kfgen.sim.float_ref import round_to_format
     out = []
     for v in map(float, values):
         sign = int(math.copysign(1.0, v) < 0)
@@ -118,5 +116,4 @@ def to_words(fmt, values) -> list[int]:
 
 def from_words(fmt, words) -> list[float]:
     """The values of ``fmt`` words as float64 (exact for every format up to binary64)."""
-    from kfgen.sim.float_ref import decode
     return [float(decode(fmt, w)) for w in words]

@@ -26,7 +26,7 @@ def slides_latency(point: dict) -> int:
 
 def tradeoff(records: list[dict], path) -> None:
     """Write the figure to ``path`` (PNG) from the bench's records."""
-    import matplotlib
+    import matplotlib  # deferred: matplotlib (the [dev] extras), only to draw
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

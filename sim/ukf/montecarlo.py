@@ -22,6 +22,8 @@ import sys
 
 import numpy as np
 
+from kfgen.hdl.ukf.params import UkfParams
+from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.cluster import add_arguments, open_runner
 from kfgen.sim.linalg.batch import BatchStatus, run_batch
 from kfgen.sim.linalg.exec import from_words, to_words
@@ -41,16 +43,13 @@ GOALS = {"binary32": 0.1, "binary16": 1.0, "bfloat16": 1.0}
 
 
 def _app() -> NanosatPrinted:
-    return load_app(SPEC)  # (loading registers the loader the core's tracer needs)
+    return load_app(SPEC)
 
 
 def run(form: str, format: str, seeds: int = 100, steps: int = STEPS, first_seed: int = 0) -> dict:
     """One configuration: per seed the iteration of its first fault (-1: none), that fault's
     STATUS bit (1 err_pivot, 2 err_nan) and its attitude error (degrees) at every iteration,
     (seeds, steps), NaN from its fault on. The run stops when every seed has faulted."""
-    from kfgen.hdl.ukf.params import UkfParams
-    from kfgen.hdl.ukf.steps import programs
-
     app = _app()
     params = UkfParams(**app.core_parameters(), format=format, form=form, app=SPEC, on_chip=True)
     progs = programs(params)

@@ -16,6 +16,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +56,7 @@ def figure12(t, traces: dict, path, title: str = "") -> None:
     t : (K,) the time of each iteration's estimate, s.
     traces : {name: (K,) attitude error in degrees}; drawn in order.
     """
-    import matplotlib
+    import matplotlib  # deferred: matplotlib (the [dev] extras), only to draw
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -179,7 +180,6 @@ def main(argv=None):
             ap.exit(2, f"{ap.prog}: error: {exc}\n")  # one line, without the usage
     runs = nanosat_runs(args.steps, args.seed, args.on_chip, args.form)
     if args.rtl:
-        import time
         t0 = time.monotonic()
         runs["estimates"][RTL_ON_CHIP if args.on_chip else RTL] = rtl_run(Path(args.rtl), args.steps, args.seed,
                                                                            args.on_chip, args.form)

@@ -19,7 +19,7 @@ import os
 import cocotb
 import numpy as np
 from cocotb.triggers import ClockCycles, FallingEdge, RisingEdge
-from cocotbext.axi import AxiResp
+from cocotbext.axi import AxiResp, AxiStreamBus, AxiStreamFrame, AxiStreamSink, AxiStreamSource
 
 from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
@@ -27,6 +27,9 @@ from kfgen.sim.engine.campaign import engine_campaign
 from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
 from kfgen.sim.linalg.exec import from_words, to_words
 from kfgen.sim.streams import StreamChecker
+from kfgen.sim.ukf.app import checked_scenario, load_app
+from kfgen.sim.ukf.reference import AugmentedUKF, SquareRootUKF
+from kfgen.sim.ukf.software import initial_words
 
 X0 = [0.5, -1.25]
 P0 = [[0.4, 0.1], [0.1, 0.3]]
@@ -162,9 +165,6 @@ async def on_chip_iterations(dut):
     scenario, one start of ``iteration`` per measurement (software writes u and z only),
     every region checked word for word, each iteration's cycles against the manifest; a start
     of a reserved step does nothing."""
-    from kfgen.sim.ukf.app import checked_scenario, load_app
-    from kfgen.sim.ukf.software import initial_words
-
     tb = await setup(dut, UkfTB)
     p = tb.params
     app = load_app(p.app)
@@ -203,11 +203,6 @@ async def stream_iterations(dut):
     AxiStreamSource), the estimates taken from ``m_axis`` (AxiStreamSink, with backpressure);
     every field word for word against the golden model, ``tuser`` against its status, the
     latency from the transfer to the result against the manifest."""
-    from cocotbext.axi import AxiStreamBus, AxiStreamFrame, AxiStreamSink, AxiStreamSource
-
-    from kfgen.sim.ukf.app import checked_scenario, load_app
-    from kfgen.sim.ukf.software import initial_words
-
     tb = await setup(dut, UkfTB)
     p, fmt = tb.params, tb.fmt
     spec = tb.manifest["streams"]
@@ -266,7 +261,6 @@ async def stream_iterations(dut):
 
 
 def AugmentedUKF_ref(p, x0, P0, Q, R):
-    from kfgen.sim.ukf.reference import AugmentedUKF, SquareRootUKF
     return (SquareRootUKF if p.form == "sqrt" else AugmentedUKF)(p.n, p.nw, p.nv, p.m, f, h, p.w0, x0, P0, Q, R)
 
 

@@ -5,11 +5,13 @@ manifest, the documents)."""
 from collections import Counter
 
 import kfgen.hdl.engine.machine as engine_machine
+import kfgen.hdl.imm.regmap as imm_regmap
+import kfgen.hdl.imm.steps as imm_steps
 import kfgen.hdl.ukf.models as ukf_models
 import kfgen.hdl.ukf.regmap as ukf_regmap
 import kfgen.hdl.ukf.steps as ukf_steps
 from kfgen.gen.api import generate_core
-from kfgen.hdl.describe import once_per_params
+from kfgen.hdl.describe import _BUILT, once_per_params
 
 
 def _counted(monkeypatch, module, name, counts):
@@ -35,10 +37,20 @@ def test_a_streams_generation_builds_each_once(monkeypatch):
     assert counts == {"place_map": 1, "build_ukf": 1, "Machine": 1, "trace": 2}  # f and h
 
 
+def test_an_imm_generation_builds_each_once(monkeypatch):
+    """``kfgen imm --models 2 --states 2 --measurements 1 --target-mhz 150`` through the
+    API: the map (validation, core, manifest, documents), the program (core, waivers) and
+    the machine (schedules, timing), each once."""
+    counts = Counter()
+    for module, name in ((imm_regmap, "place_map"), (imm_steps, "build_imm"), (engine_machine, "Machine")):
+        _counted(monkeypatch, module, name, counts)
+    made = generate_core("imm", models=2, states=2, measurements=1, target_mhz=150)
+    assert made.manifest["timing"]
+    assert counts == {"place_map": 1, "build_imm": 1, "Machine": 1}
+
+
 def test_once_per_params_keeps_by_identity():
     """Equal objects build their own; what one built goes with it."""
-    from kfgen.hdl.describe import _BUILT
-
     calls = Counter()
 
     @once_per_params

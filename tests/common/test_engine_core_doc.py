@@ -1,7 +1,9 @@
-"""docs/engine-core.md builds what it says: its code blocks, written out as a package, are a
-core on the engine that generates, whose program the golden model runs to numpy's answer,
-and that imports the engine layer only."""
+"""docs/engine-core.md builds what it says: its code blocks, written out as two packages (the
+core's ``hdl`` package and its ``sim`` package), are a core on the engine that imports only the
+shared layers, generates, whose golden model gives numpy's answer, and whose testbench passes
+on the generated Verilog in Verilator."""
 
+import ast
 import importlib
 import re
 import sys
@@ -10,54 +12,105 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kfgen.gen.cli import generate
-from kfgen.sim.linalg.exec import from_words, run, to_words
+import kfgen.gen.cores as cores
+from helpers import EVERY_ELABORATABLE_USED, VERILATOR_CACHE
+from kfgen.gen.output import generate, write_files
+from kfgen.sim.engine.run import build_core, run_tb
+
+pytestmark = EVERY_ELABORATABLE_USED
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "engine-core.md"
-PACKAGE = "kf_doc_core"  # no clash with an installed name
+#: The page's packages -> the names they are written out under (no clash with an installed name).
+PACKAGES = {"kfgen.hdl.propagate": "propagate_doc_core", "kfgen.sim.propagate": "propagate_doc_sim"}
+#: What a core's packages may import of kfgen besides their own: the shared layers.
+SHARED = ("kfgen.hdl.arith", "kfgen.hdl.bus", "kfgen.hdl.describe", "kfgen.hdl.engine", "kfgen.hdl.linalg",
+          "kfgen.sim.engine", "kfgen.sim.linalg")
+
+
+def _blocks() -> list[tuple[str, str, str]]:
+    """(top, module, text) of each of the page's code blocks headed ``# hdl/propagate/X.py``
+    or ``# sim/propagate/X.py``."""
+    return re.findall(r"```python\n# (hdl|sim)/propagate/(\w+)\.py\n(.*?)```", PAGE.read_text(), re.S)
 
 
 @pytest.fixture(scope="module")
-def kf(tmp_path_factory):
-    blocks = re.findall(r"```python\n# hdl/kf/(\w+)\.py\n(.*?)```", PAGE.read_text(), re.S)
-    assert [name for name, _ in blocks] == ["params", "programs", "steps", "regmap", "core", "descriptor"]
+def page(tmp_path_factory):
+    """The page's modules, imported from the packages written out: ``{"params": module, ...}``."""
+    blocks = _blocks()
+    assert [(top, name) for top, name, _ in blocks] == [
+        ("hdl", "params"), ("hdl", "programs"), ("hdl", "steps"), ("hdl", "regmap"), ("hdl", "core"),
+        ("hdl", "descriptor"), ("sim", "golden"), ("sim", "tb")]
     root = tmp_path_factory.mktemp("doc")
-    (root / PACKAGE).mkdir()
-    (root / PACKAGE / "__init__.py").write_text("")
-    for name, text in blocks:
-        assert "kfgen.hdl.ukf" not in text and "kfgen.hdl.imm" not in text, name
-        (root / PACKAGE / f"{name}.py").write_text(text)
+    for package in PACKAGES.values():
+        (root / package).mkdir()
+        (root / package / "__init__.py").write_text("")
+    for top, name, text in blocks:
+        for page_name, written in PACKAGES.items():
+            text = text.replace(page_name, written)
+        (root / PACKAGES[f"kfgen.{top}.propagate"] / f"{name}.py").write_text(text)
     sys.path.insert(0, str(root))
     try:
-        yield {name: importlib.import_module(f"{PACKAGE}.{name}") for name, _ in blocks}
+        yield {name: importlib.import_module(f"{PACKAGES[f'kfgen.{top}.propagate']}.{name}")
+               for top, name, _ in blocks}
     finally:
         sys.path.remove(str(root))
-        for mod in [m for m in sys.modules if m == PACKAGE or m.startswith(PACKAGE + ".")]:
+        for mod in [m for m in sys.modules if m.partition(".")[0] in PACKAGES.values()]:
             del sys.modules[mod]
 
 
-def test_the_page_core_generates(kf):
-    params = kf["params"].KfParams(states=3, pes=2)
-    files = generate(kf["descriptor"].CORE, params)
-    assert "module kf(" in files["kf.v"] and '"predict"' in files["kf.json"]
+def test_the_page_core_imports_only_the_shared_layers():
+    """Every import of kfgen in the page's blocks is of the core's own packages or of a shared
+    layer: no other core, no ``gen``; the ``hdl`` blocks import no ``sim``."""
+    for top, name, text in _blocks():
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom) and node.level == 0:
+                modules = [node.module]
+            elif isinstance(node, ast.Import):
+                modules = [alias.name for alias in node.names]
+            else:
+                continue
+            for module in modules:
+                if not module.startswith("kfgen"):
+                    continue
+                own = tuple(p for p in PACKAGES if top == "sim" or p.startswith("kfgen.hdl"))
+                assert any(module == p or module.startswith(p + ".")
+                           for p in own + tuple(s for s in SHARED if top == "sim" or s.startswith("kfgen.hdl"))), \
+                    f"{top}/propagate/{name}.py imports {module}"
 
 
-def test_the_page_program_matches_numpy(kf):
-    params = kf["params"].KfParams(states=3)
-    progs = kf["programs"].build_kf(params)
-    lay, fmt = progs.layout, params.fmt
+def test_the_page_core_generates(page):
+    params = page["params"].PropagateParams(states=3, pes=2)
+    files = generate(page["descriptor"].CORE, params)
+    assert "module propagate(" in files["propagate.v"] and '"predict"' in files["propagate.json"]
+
+
+def test_the_page_golden_model_matches_numpy(page):
+    params = page["params"].PropagateParams(states=3)
     rng = np.random.default_rng(3)
     A = rng.normal(size=(3, 3))
-    val = {"x": rng.normal(size=3), "P": A @ A.T + np.eye(3), "F": np.eye(3) + 0.1 * rng.normal(size=(3, 3)),
-           "Q": 0.01 * np.eye(3)}
-    mem = lay.initial_memory()
-    for name, v in val.items():
-        reg = lay[name]
-        mem[reg.base:reg.base + reg.size] = to_words(fmt, np.ravel(v))
-    st = run(progs.predict, mem)
-    assert not (st.pivot or st.nan)
-    out = {k: np.array(from_words(fmt, mem[lay[k].base:lay[k].base + lay[k].size])) for k in ("x", "P")}
-    F, P, Q = val["F"], val["P"], val["Q"]
-    assert np.allclose(out["x"], F @ val["x"], rtol=1e-5)
-    P1 = out["P"].reshape(3, 3)
-    assert np.allclose(P1, F @ P @ F.T + Q, rtol=1e-5) and (P1 == P1.T).all()
+    values = {"x": rng.normal(size=3), "P": A @ A.T + np.eye(3), "F": np.eye(3) + 0.1 * rng.normal(size=(3, 3)),
+              "Q": 0.01 * np.eye(3)}
+    out, status = page["golden"].predict(params, values)
+    assert not (status.pivot or status.nan)
+    F, P, Q = values["F"], values["P"], values["Q"]
+    assert np.allclose(out["x"].ravel(), F @ values["x"], rtol=1e-5)
+    assert np.allclose(out["P"], F @ P @ F.T + Q, rtol=1e-5) and (out["P"] == out["P"].T).all()
+
+
+def _hook_line() -> str:
+    """The page's line for ``_HOOKS`` in gen/cores.py."""
+    (line,) = re.findall(r'^"propagate": \{.*\},$', PAGE.read_text(), re.M)
+    return line
+
+
+@pytest.mark.verilator
+def test_the_page_testbench_passes(page, tmp_path, monkeypatch):
+    """The page's ``_HOOKS`` line bound, the core generated, built on Verilator and its
+    testbench run."""
+    hooks = eval("{" + _hook_line() + "}", {**vars(cores), "propagate_map": page["regmap"].propagate_map})
+    monkeypatch.setitem(cores._HOOKS, "propagate", hooks["propagate"])
+    monkeypatch.setattr(cores, "_BOUND", {})
+    params = page["params"].PropagateParams(states=3, pes=2)
+    write_files(tmp_path, generate(page["descriptor"].CORE, params))
+    model = build_core(tmp_path, "propagate", VERILATOR_CACHE)
+    run_tb(model, tmp_path, "propagate", page["tb"].__name__, ["steps"], "steps")
