@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import sys
 
 import cocotb
 import numpy as np
@@ -47,7 +48,13 @@ class TB:
 
     def __init__(self, dut):
         self.dut = dut
-        self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
+        path = os.environ["KFGEN_TB_MANIFEST"]
+        self.manifest = json.loads(open(path).read())
+        # A core records its application's file by name alone (kfgen.hdl.engine.app.recorded_spec):
+        # it is found beside the core, or in KFGEN_APP_DIR (the directory a runner found it in).
+        for directory in (os.path.dirname(os.path.abspath(path)), os.environ.get("KFGEN_APP_DIR")):
+            if directory and directory not in sys.path:
+                sys.path.append(directory)
         self.params = self.PARAMS(**self.manifest["parameters"])
         self.programs = self.PROGRAMS(self.params)
         self.fmt, self.layout = self.programs.fmt, self.programs.layout
