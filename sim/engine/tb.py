@@ -32,9 +32,22 @@ from kfgen.sim.streams import StreamChecker
 from .prologue import Prologue
 from .watchdog import Expired, Watchdog, bound, poll, wait_irq
 
-__all__ = ["CLOCK_NS", "TB", "setup", "holes", "wait_idle", "watchdog_fires"]
+__all__ = ["CLOCK_NS", "load_manifest", "TB", "setup", "holes", "wait_idle", "watchdog_fires"]
 
 CLOCK_NS = 10
+
+
+def load_manifest() -> dict:
+    """The manifest ``KFGEN_TB_MANIFEST`` names. A core records its application's file by name
+    alone (:func:`kfgen.hdl.engine.app.recorded_spec`): the core's directory and
+    ``KFGEN_APP_DIR`` (where a runner found the application) go on ``sys.path``, where the
+    loader looks for it."""
+    path = os.environ["KFGEN_TB_MANIFEST"]
+    for directory in (os.environ.get("KFGEN_APP_DIR"), os.path.dirname(os.path.abspath(path))):
+        if directory and directory not in sys.path:
+            sys.path.insert(0, directory)
+    with open(path) as f:
+        return json.load(f)
 
 
 class TB:
@@ -48,13 +61,7 @@ class TB:
 
     def __init__(self, dut):
         self.dut = dut
-        path = os.environ["KFGEN_TB_MANIFEST"]
-        self.manifest = json.loads(open(path).read())
-        # A core records its application's file by name alone (kfgen.hdl.engine.app.recorded_spec):
-        # it is found beside the core, or in KFGEN_APP_DIR (the directory a runner found it in).
-        for directory in (os.path.dirname(os.path.abspath(path)), os.environ.get("KFGEN_APP_DIR")):
-            if directory and directory not in sys.path:
-                sys.path.append(directory)
+        self.manifest = load_manifest()
         self.params = self.PARAMS(**self.manifest["parameters"])
         self.programs = self.PROGRAMS(self.params)
         self.fmt, self.layout = self.programs.fmt, self.programs.layout

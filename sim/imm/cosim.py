@@ -30,7 +30,6 @@ from __future__ import annotations
 import ctypes
 import json
 import os
-import sys
 import time
 
 import cocotb
@@ -52,9 +51,7 @@ class Run:
     """One co-simulation: the application, its scenario, the testbench and the trace."""
 
     def __init__(self, tb):
-        self.tb = tb
-        if os.environ.get("KFGEN_APP_DIR"):
-            sys.path.insert(0, os.environ["KFGEN_APP_DIR"])
+        self.tb = tb  # its manifest's loading put KFGEN_APP_DIR on sys.path
         self.app = load_imm_app(os.environ["KFGEN_APP"])
         self.steps = int(os.environ.get("KFGEN_STEPS", "20"))
         self.scenario = checked_scenario(self.app, self.steps, int(os.environ.get("KFGEN_SEED", "1")))

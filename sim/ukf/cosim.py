@@ -36,7 +36,6 @@ import ctypes
 import json
 import logging
 import os
-import sys
 import time
 
 import cocotb
@@ -51,7 +50,7 @@ from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.engine.mmio import Dev, Guard, c_function, set_hooks
 from kfgen.sim.engine.prologue import Prologue
-from kfgen.sim.engine.tb import CLOCK_NS
+from kfgen.sim.engine.tb import CLOCK_NS, load_manifest
 from kfgen.sim.engine.watchdog import Expired, Watchdog, wait_irq
 from kfgen.sim.linalg.exec import Status, from_words
 
@@ -283,9 +282,7 @@ def _bus_words(elements, per):
 class Run:
     def __init__(self, dut):
         self.dut = dut
-        self.manifest = json.loads(open(os.environ["KFGEN_TB_MANIFEST"]).read())
-        if os.environ.get("KFGEN_APP_DIR"):  # the runner's directory, where its module:Class is found
-            sys.path.insert(0, os.environ["KFGEN_APP_DIR"])
+        self.manifest = load_manifest()
         self.app = load_app(os.environ["KFGEN_APP"])
         self.steps = int(os.environ.get("KFGEN_STEPS", "20"))
         self.scenario = checked_scenario(self.app, self.steps, int(os.environ.get("KFGEN_SEED", "1")))
