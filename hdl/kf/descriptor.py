@@ -7,6 +7,7 @@ from ..describe import CoreDescriptor, Doc
 from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..linalg.schedule import chain_bound
+from .core import Kf
 from .params import INPUTS_MAX, MEASUREMENTS_MAX, PES_MAX, STATES_MAX, KfParams
 from .regmap import CYCLES
 from .steps import programs
@@ -39,11 +40,6 @@ def _docs() -> dict[str, Doc]:
                            "P, Q and R: an iteration is n (n + nu + m) multiply-adds (docs/kf.md)", "", "a switch"),
         **{k: engine[k] for k in ("address_width", "target_mhz", "name")},
     }
-
-
-def _build(params):
-    from .core import Kf
-    return Kf(params)
 
 
 def _streams(core) -> dict:
@@ -90,7 +86,7 @@ CORE = CoreDescriptor(
             "PEs behind an AXI4 slave",
     params=KfParams,
     docs=_docs,
-    build=_build,
+    build=Kf,
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({}, {"states": 2, "measurements": 1, "inputs": 1, "steady_gain": True, "streams": True,
