@@ -21,10 +21,12 @@ from ipyxact.ipyxact import Component
 from systemrdl.node import MemNode, RegNode
 
 from kfgen.gen import __version__
-from kfgen.gen.ipxact import SPIRIT, component, vlnv
+from kfgen.gen.ipxact import SPIRIT, component, files, vlnv
 from kfgen.gen.regdoc import compile_systemrdl
 
 from helpers import kfgen_in_process
+
+pytestmark = pytest.mark.xdist_group("ipxact")  # one worker generates the three cores once
 
 S = f"{{{SPIRIT}}}"
 NS = {"spirit": SPIRIT}
@@ -68,6 +70,13 @@ def _in_order(node, order) -> None:
 def _params(bus) -> dict[str, str]:
     return {p.find("spirit:name", NS).text: p.find("spirit:value", NS).text
             for p in bus.findall("spirit:parameters/spirit:parameter", NS)}
+
+
+def test_only_for_an_axi4_slave(tmp_path):
+    """A core without an AXI4 slave (Castella: streams only) writes neither file."""
+    assert files("trk", "", {"ports": [{"name": "clk", "direction": "input", "width": 1}]}) == {}
+    assert kfgen_in_process("castella", "--tracks", "2", "--name", "trk", "-o", tmp_path).returncode == 0
+    assert not list(tmp_path.glob("trk*.xml")) and not list(tmp_path.glob("*_ip.tcl"))
 
 
 def test_component(generated):
