@@ -30,7 +30,8 @@ def rtl(build_root):
 @pytest.mark.xdist_group("imm_core")
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob("imm_small.*"))
-    assert names == sorted(f"imm_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc"))
+    assert names == sorted(f"imm_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
+                                                                  "xml"))
     man = json.loads((rtl / "imm_small.json").read_text())
     params = ImmParams(**man["parameters"])
     assert (params.R, params.n, params.d, params.pes) == (3, 2, 2, 2)

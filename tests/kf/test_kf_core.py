@@ -31,7 +31,7 @@ def rtl(build_root):
 @pytest.mark.xdist_group("kf_core")
 def test_files_and_manifest(rtl):
     names = {p.name for p in rtl.glob("kf_small.*")}
-    assert {f"kf_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core")} <= names
+    assert {f"kf_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xml")} <= names
     man = json.loads((rtl / "kf_small.json").read_text())
     params = KfParams(**man["parameters"])
     assert (params.n, params.m, params.nu, params.pes, params.streams) == (4, 2, 1, 2, True)
