@@ -77,6 +77,11 @@ def _imm_map(params):
     return imm_map(params)
 
 
+def _ekf_map(params):
+    from kfgen.hdl.ekf.regmap import ekf_map
+    return ekf_map(params)
+
+
 def _ukf_driver(params):
     from .cdriver import ukf_driver
     return ukf_driver(params.name, params.format.name)
@@ -124,6 +129,7 @@ _HOOKS = {
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map), "extra": _with_map},
+    "ekf": {"smoke": _id_register_reads, "documents": _map_documents(_ekf_map), "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor
