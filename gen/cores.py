@@ -129,7 +129,8 @@ _HOOKS = {
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
             "documents": _map_documents(_imm_map), "extra": _with_map},
-    "ekf": {"smoke": _id_register_reads, "documents": _map_documents(_ekf_map), "extra": _with_map},
+    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _id_register_reads, "documents": _map_documents(_ekf_map),
+            "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor

@@ -1,0 +1,29 @@
+"""docs/ekf.md's tables are what ``python -m kfgen.gen.bench_ekf`` prints (the cycles of the
+EKF and the UKF's on-chip iteration, the Jacobians' multiply-adds), and the accuracy run's task
+runs (one seed of the tracker; the 100-seed run is the docs' command, not the regression's)."""
+
+import numpy as np
+
+from kfgen.gen.bench_ekf import FILTERS, accuracy_block, cycles_rows, jacobian_rows
+
+from helpers import ROOT
+
+
+def test_the_docs_tables_are_the_bench():
+    text = (ROOT / "docs" / "ekf.md").read_text()
+    for r in cycles_rows((1, 2)):
+        assert r["ratio"] <= 0.5, r  # issue 35's goal
+        line = (f"| {r['app']} | {r['pes']} | {r['ekf']} | {r['ukf']} | {r['ratio']:.2f} | {r['ekf_fma']} | "
+                f"{r['ukf_fma']} |")
+        assert line in text, line
+    for r in jacobian_rows():
+        line = (f"| {r['app']} | {r['jacobian']} | {r['shape']} | {r['nonzero']} | {r['constant']} | {r['dense']} | "
+                f"{r['sparse']} |")
+        assert line in text, line
+
+
+def test_accuracy_block_runs():
+    out = accuracy_block("tracker", 0, 1)
+    assert out["ekf_b32_faults"] == out["ukf_b32_faults"] == 0
+    figures = np.array([out[k][0] for k in FILTERS])
+    assert np.all(np.isfinite(figures)) and np.all(figures < 50), figures
