@@ -27,3 +27,16 @@ def test_accuracy_block_runs():
     assert out["ekf_b32_faults"] == out["ukf_b32_faults"] == 0
     figures = np.array([out[k][0] for k in FILTERS])
     assert np.all(np.isfinite(figures)) and np.all(figures < 50), figures
+
+
+def test_the_docs_map_is_the_tracker_cores():
+    from kfgen.hdl.ekf.params import EkfParams
+    from kfgen.hdl.ekf.regmap import ekf_map
+
+    text = (ROOT / "docs" / "ekf.md").read_text()
+    rmap = ekf_map(EkfParams("tracker:Tracker"))
+    offsets = {m.name: m.offset for m in rmap.memories}
+    assert f"({2 ** rmap.address_width}\nbytes, the buffer from {rmap.buffer_base:#x}" in text
+    assert f"| `x` | {offsets['x']:#X} |".replace("0X", "0x") in text
+    assert f"| `Q`, `R` | {offsets['Q']:#X}, {offsets['R']:#X} |".replace("0X", "0x") in text
+    assert f"| `z` | {offsets['z']:#X} |".replace("0X", "0x") in text
