@@ -50,7 +50,7 @@ APPS = {"tracker": ("tracker:Tracker", 200), "nanosat": ("nanosat:Nanosat", NANO
 #: Seconds after which the nanosatellite's attitude error is averaged (its filters settle).
 SETTLE = 1.0
 #: Seeds per accuracy task.
-BLOCK = 10
+BLOCK = 25
 #: The filters of the accuracy table, in its order.
 FILTERS = ("ekf_b32", "ukf_b32", "ekf_f64", "ukf_f64")
 
