@@ -50,7 +50,7 @@ APPS = {"tracker": ("tracker:Tracker", 200), "nanosat": ("nanosat:Nanosat", NANO
 #: Seconds after which the nanosatellite's attitude error is averaged (its filters settle).
 SETTLE = 1.0
 #: Seeds per accuracy task.
-BLOCK = 25
+BLOCK = 50
 #: The filters of the accuracy table, in its order.
 FILTERS = ("ekf_b32", "ukf_b32", "ekf_f64", "ukf_f64")
 
@@ -204,7 +204,7 @@ def main(argv=None) -> int:
             v = np.array(figs[k])
             ok = v[np.isfinite(v)]
             faults = figs.get(f"{k}_faults", 0)
-            print(f"{'':8} {labels[k]:22} {np.mean(ok):>10.4g} {np.max(ok):>10.4g} {faults:>7}")
+            print(f"{'':8} {labels[k]:22} {np.mean(ok):>10.5g} {np.max(ok):>10.5g} {faults:>7}")
     return 0
 
 
