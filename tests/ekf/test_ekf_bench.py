@@ -40,3 +40,20 @@ def test_the_docs_map_is_the_tracker_cores():
     assert f"| `x` | {offsets['x']:#X} |".replace("0X", "0x") in text
     assert f"| `Q`, `R` | {offsets['Q']:#X}, {offsets['R']:#X} |".replace("0X", "0x") in text
     assert f"| `z` | {offsets['z']:#X} |".replace("0X", "0x") in text
+
+
+def test_the_pendulum_figures():
+    from kfgen.hdl.ekf.params import EkfParams
+    from kfgen.hdl.ekf.steps import schedules
+    from kfgen.hdl.linalg.engine import OVERHEAD
+    from kfgen.hdl.linalg.schedule import chain_bound
+
+    text = " ".join((ROOT / "docs" / "ekf.md").read_text().split())
+    p = EkfParams(f"{ROOT / 'docs' / 'examples' / 'pendulum.py'}:Pendulum")
+    sched = schedules(p)["iterate"]
+    assert f"`cycles.iterate` is {sched.cycles + OVERHEAD} at P = 1, of which {sched.program.fma_count} " \
+           "multiply-adds" in text
+    assert f"`bounds.chain` {chain_bound(sched.program, sched.machine)}" in text
+    jac = {j.name: j for j in p.models.jacobians.values()}
+    assert (len(jac["F"].entries), jac["F"].constants, jac["F"].sparse) == (4, 3, 1)
+    assert jac["H"].pattern.tolist() == [[True, False]] and jac["H"].sparse == 0
