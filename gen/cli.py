@@ -111,9 +111,21 @@ def _help(doc: Doc, default, resolved=None) -> str:
     return f"{doc.meaning}{unit}; {doc.allowed}; default {shown}".replace("%", "%%")
 
 
+def resolved_defaults(core: CoreDescriptor):
+    """``core``'s parameters as its defaults resolve them; for a core that cannot run without an
+    application (the EKF), with its first example's."""
+    try:
+        return core.params()
+    except ParamError as exc:
+        if exc.param != "app":
+            raise
+        return core.params(**core.examples[0])
+
+
 def _writes(core: CoreDescriptor) -> str:
-    """``DIR/TOP.v, ...``: the files ``core`` writes with its default parameters, TOP for the name."""
-    params = core.params()
+    """``DIR/TOP.v, ...``: the files ``core`` writes with its default parameters
+    (:func:`resolved_defaults`), TOP for the name."""
+    params = resolved_defaults(core)
     top = params.name
     names = [f"{top}.v", f"{top}.vlt", f"{top}.json", *core.documents(params)]
     if core.smoke is not None:
@@ -137,7 +149,7 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
     for core in discover().values():
         params_cls = core.params
         docs, defaults = core.docs(), _defaults(params_cls)
-        resolved = core.params() if core.name == help_for else None
+        resolved = resolved_defaults(core) if core.name == help_for else None
         values_from = ("Values come from the defaults, then --app, then --config FILE.toml (its keys are the\n"
                        "option names without" if core.app is not None else
                        "Values come from the defaults, then --config FILE.toml (its keys are the option names\n"

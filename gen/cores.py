@@ -19,6 +19,7 @@ from functools import cache
 import kfgen.hdl
 
 from kfgen.hdl.describe import CoreDescriptor
+from kfgen.hdl.ekf.regmap import ekf_map
 from kfgen.hdl.imm.regmap import imm_map
 from kfgen.hdl.kf.regmap import kf_map
 from kfgen.hdl.ukf.core import stream_spec
@@ -123,6 +124,8 @@ _HOOKS = {
             "documents": _map_documents(imm_map, _imm_driver), "extra": _with_map},
     "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _id_register_reads, "documents": _map_documents(kf_map),
            "extra": _with_map},
+    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _id_register_reads, "documents": _map_documents(ekf_map),
+            "extra": _with_map},
 }
 
 _BOUND: dict[str, CoreDescriptor] = {}  # core name -> its bound descriptor

@@ -1,8 +1,8 @@
-"""Generate a core and simulate it, in one command: the co-simulation of a UKF application or
-of an IMM application (a model set and its scenario) on the core sized for it (``python -m
-kfgen.gen.cosim ukf --app MODULE:CLASS``, ``python -m kfgen.gen.cosim imm --app
-FILE.py:CLASS``), and the IMM's satellite-link scenario on a generated core
-(:func:`imm_scenario`).
+"""Generate a core and simulate it, in one command: the co-simulation of a UKF application on
+the core sized for it (``python -m kfgen.gen.cosim ukf --app MODULE:CLASS``), the same
+application on its EKF core (``python -m kfgen.gen.cosim ekf --app ...``), an IMM application
+(a model set and its scenario, ``python -m kfgen.gen.cosim imm --app FILE.py:CLASS``), and the
+IMM's satellite-link scenario on a generated core (:func:`imm_scenario`).
 
 Generation is gen's and simulation sim's (:mod:`kfgen.sim.ukf.run`, :mod:`kfgen.sim.imm.run`,
 on a directory holding a generated core): these commands join the two, so that sim never
@@ -20,10 +20,15 @@ from pathlib import Path
 import numpy as np
 
 from kfgen.hdl.describe import ParamError
+from kfgen.hdl.ekf.descriptor import CORE as EKF
+from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.imm.descriptor import CORE as IMM
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.ukf.descriptor import CORE
 from kfgen.hdl.ukf.params import UkfParams
+from kfgen.sim.ekf.reference import measurements
+from kfgen.sim.ekf.reference import run_reference as ekf_reference
+from kfgen.sim.ekf.run import run_iterations
 from kfgen.sim.engine.run import CosimFault, build_core, build_driver, run_cosim as engine_cosim
 from kfgen.sim.imm.app import checked_scenario as imm_checked_scenario
 from kfgen.sim.imm.app import load_imm_app
@@ -37,7 +42,7 @@ from kfgen.sim.ukf.software import StepError
 from .cdriver import FORMATS as C_FORMATS
 from .synth import write_core
 
-__all__ = ["EXIT_CODES", "FAULTS", "ukf", "imm", "imm_scenario", "main"]
+__all__ = ["EXIT_CODES", "FAULTS", "ukf", "ekf", "imm", "imm_scenario", "main"]
 
 #: The command, for its messages.
 PROG = "python -m kfgen.gen.cosim"
@@ -145,6 +150,67 @@ def ukf(argv) -> int:
     return 0
 
 
+def ekf(argv) -> int:
+    """``python -m kfgen.gen.cosim ekf --app MODULE:CLASS [...]``: generate the EKF core of an
+    application (its f and h with their Jacobians), build it, and run the application's
+    scenario on it, one start an iteration (every word checked against the golden model);
+    prints the cycles of an iteration and the estimate's distance from the float64 reference EKF.
+
+    Before anything is generated: the application loads, passes its checks and
+    differentiates (:class:`kfgen.hdl.ekf.params.EkfParams`), f and h run once on x0 and a
+    point of P0, the scenario is well formed.
+
+    Returns the exit status (:data:`EXIT_CODES`)."""
+    summary = textwrap.fill(" ".join(ekf.__doc__.split("\n\n")[0].split()), 88)
+    ap = _Parser(prog=f"{PROG} ekf", description=summary, epilog=EXIT_CODES,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--app", required=True,
+                    help="the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "
+                         "tracker:Tracker); it must define scenario(steps, seed)")
+    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
+    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
+    ap.add_argument("--format", default="binary32", help="the core's number format (default binary32)")
+    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
+    ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
+    args = ap.parse_args(argv)
+    try:
+        if args.steps < 1:
+            raise ValueError(f"--steps must be a positive integer, not {args.steps}")
+        app = load_app(args.app)
+        check_models(app)
+        spec, app_dir = portable_spec(args.app)
+    except (AppError, ValueError) as exc:
+        print(f"cosim: error: {exc}", file=sys.stderr)
+        return 2
+    with _on_path(app_dir):  # the core loads its application by the file's recorded name
+        try:
+            params = EkfParams(app=spec, pes=args.pes, format=args.format, name="ekf_app")
+            checked_scenario(app, args.steps, args.seed)
+        except (AppError, ParamError, ValueError) as exc:
+            print(f"cosim: error: {exc}", file=sys.stderr)
+            return 2
+        work = Path(args.out)
+        rtl, manifest = write_core(EKF, params, work)
+    model = build_core(rtl, params.name, work / "verilator", waves=args.waves, cycles=args.steps * 2000)
+    got = run_iterations(model, rtl, params.name, args.steps, seed=args.seed, app_dir=app_dir or Path.cwd())
+    faults = np.flatnonzero(got["flags"])
+    if faults.size:
+        k = int(faults[0])
+        bit = "err_pivot" if got["flags"][k] & 1 else "err_nan"
+        print(f"cosim: error: the core raised a numerical fault at iteration {k} ({bit}: {FAULTS[bit]}); "
+              f"log {rtl / 'runs' / 'cosim.log'}", file=sys.stderr)
+        return 3
+    us, zs = measurements(app, args.steps, args.seed)
+    ref = ekf_reference(app, us, zs)["x"]
+    print(f"{args.steps} iterations of {args.app} on the EKF core {params.name} (P = {params.pes}, "
+          f"{params.format}): every word equal to the golden model's")
+    print(f"cycles per iteration: {manifest['cycles']['iterate']}")
+    print(f"largest |x - float64 reference EKF| over the run: {np.max(np.abs(got['x'] - ref)):.3g}")
+    print(f"files: {rtl} (runs/cosim.log{', runs/cosim.fst' if args.waves else ''})")
+    return 0
+
+
 def imm(argv) -> int:
     """``python -m kfgen.gen.cosim imm --app FILE.py:CLASS [...]``: size an IMM core for an
     application (its R models of n states, d measurements), generate and build it, and
@@ -249,7 +315,7 @@ def imm_scenario(out_dir, steps: int, *, pes: int = 4, seed: int | None = None, 
 
 
 #: The commands, by core.
-COMMANDS = {"ukf": ukf, "imm": imm}
+COMMANDS = {"ukf": ukf, "ekf": ekf, "imm": imm}
 
 
 def main(argv=None) -> int:

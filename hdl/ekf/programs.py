@@ -48,8 +48,8 @@ class EkfPrograms:
 
     @property
     def steps(self):
-        """Step name -> program: the one step, ``iteration``."""
-        return {"iteration": self.iteration}
+        """Step name -> program: the one step, ``iterate`` (the manifest's ``cycles`` key)."""
+        return {"iterate": self.iteration}
 
 
 def _instantiate(prog, lay, lin: Linearised, label, inputs: dict, out, caddr):

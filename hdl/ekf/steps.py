@@ -4,6 +4,7 @@ program, so the core, its manifest and the golden model cannot disagree."""
 
 from __future__ import annotations
 
+from ..describe import once_per_params
 from ..engine.machine import machine as engine_machine
 from ..engine.machine import schedules as engine_schedules
 from ..engine.params import check_work
@@ -13,9 +14,16 @@ from .programs import EkfPrograms, build_ekf
 __all__ = ["programs", "machine", "schedules"]
 
 
-def programs(params, models: EkfModels) -> EkfPrograms:
-    """The memory layout and the iteration's program."""
-    return build_ekf(params, models)
+@once_per_params
+def _own(params) -> EkfPrograms:
+    return build_ekf(params, params.models)
+
+
+def programs(params, models: EkfModels | None = None) -> EkfPrograms:
+    """The memory layout and the iteration's program of ``models``; by default the parameters'
+    own application's (:attr:`~kfgen.hdl.ekf.params.EkfParams.models`), built once per
+    parameter object."""
+    return _own(params) if models is None else build_ekf(params, models)
 
 
 def machine(params):
@@ -24,7 +32,8 @@ def machine(params):
     return engine_machine(params)
 
 
-def schedules(params, progs: EkfPrograms) -> dict:
-    """``{"iteration": Schedule}``."""
+def schedules(params, progs: EkfPrograms | None = None) -> dict:
+    """``{"iterate": Schedule}``."""
+    progs = progs or programs(params)
     check_work(sum(prog.fma_count for prog in progs.steps.values()), params.pes, "states")
     return engine_schedules(progs.steps, machine(params))

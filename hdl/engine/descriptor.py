@@ -10,8 +10,8 @@ from ..linalg import isa
 from .machine import machine, timing
 from .params import ADDRESS_WIDTH_MAX, FORMAT_WIDTH_MAX
 
-__all__ = ["engine_docs", "engine_waivers", "engine_manifest", "engine_timing", "program_units", "units_used",
-           "CYCLES_DEFINITION"]
+__all__ = ["engine_docs", "engine_waivers", "engine_manifest", "engine_timing", "engine_streams", "program_units",
+           "units_used", "CYCLES_DEFINITION"]
 
 #: The manifest's ``cycles_definition``: what a step's cycle count counts.
 CYCLES_DEFINITION = ("clock edges from the edge that takes the W beat writing CTRL.start = 1 to the "
@@ -57,6 +57,30 @@ def engine_timing(params, core) -> dict:
     if params.target_mhz is None:
         return {}
     return {"timing": timing(params, machine(params), units_used(core))}
+
+
+def engine_streams(core, step: str) -> dict:
+    """``{"streams": ...}`` for the manifest of an engine core with stream ports whose
+    ``s_axis`` transfer is a measurement (z, then u) that runs ``step`` and whose ``m_axis``
+    transfer is the estimate (x, then the diagonal of P); ``{}`` without stream ports."""
+    spec = core.stream
+    if spec is None:
+        return {}
+
+    width, fields = core.params.fmt.width, spec.fields()
+
+    def listed(port):
+        return [{"name": name, "lsb": lsb, "width": width} for name, lsb in fields[port]]
+    return {"streams": {
+        "s_axis": {"tdata_width": spec.in_width, "fields": listed("s_axis"),
+                   "meaning": f"one measurement: the core writes z and u, runs {step}"},
+        "m_axis": {"tdata_width": spec.out_width, "fields": listed("m_axis"),
+                   "tuser": {"err_pivot": 0, "err_nan": 1},
+                   "meaning": f"the estimate after that {step}: x, then the diagonal of P"},
+        "latency_cycles": core.cycles(step) + spec.latency(),
+        "latency_definition": "clock edges from the one that takes the s_axis transfer (counted) to the first "
+                              "after which m_axis_tvalid is high",
+    }}
 
 
 def engine_waivers(params, units=()) -> str:

@@ -5,7 +5,8 @@ from __future__ import annotations
 from ..describe import CoreDescriptor, Doc
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..engine.app import load_app
-from ..engine.descriptor import engine_docs, engine_manifest, engine_timing, engine_waivers, program_units
+from ..engine.descriptor import (engine_docs, engine_manifest, engine_streams, engine_timing, engine_waivers,
+                                 program_units)
 from .core import Ukf
 from .params import FLOOR_REASON, SIZE_MAX, UkfParams
 from .regmap import steps
@@ -48,32 +49,11 @@ def _docs() -> dict[str, Doc]:
     }
 
 
-def _streams(core) -> dict:
-    spec = core.stream
-    if spec is None:
-        return {}
-
-    width, fields = core.params.fmt.width, spec.fields()
-
-    def listed(port):
-        return [{"name": name, "lsb": lsb, "width": width} for name, lsb in fields[port]]
-    return {"streams": {
-        "s_axis": {"tdata_width": spec.in_width, "fields": listed("s_axis"),
-                   "meaning": "one measurement: the core writes z and u, runs iteration"},
-        "m_axis": {"tdata_width": spec.out_width, "fields": listed("m_axis"),
-                   "tuser": {"err_pivot": 0, "err_nan": 1},
-                   "meaning": "the estimate after that iteration: x, then the diagonal of P"},
-        "latency_cycles": core.cycles("iteration") + spec.latency(),
-        "latency_definition": "clock edges from the one that takes the s_axis transfer (counted) to the first "
-                              "after which m_axis_tvalid is high",
-    }}
-
-
 def _extra(params, core) -> dict:
     return {
         **engine_manifest(core),
         **engine_timing(params, core),
-        **_streams(core),
+        **engine_streams(core, "iteration"),
         "cycles_keys": {v.name: f"one {v.name} step (CTRL.start with CTRL.step = {v.value}): {v.desc}"
                         for v in steps(params)},
         "sizes": {"n": params.n, "m": params.m, "nw": params.nw, "nv": params.nv, "M": params.M,

@@ -12,7 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["central_differences", "FiniteDifferences", "ekf_step", "run_reference"]
+__all__ = ["central_differences", "FiniteDifferences", "ekf_step", "run_reference", "measurements"]
+
+
+def measurements(app, steps: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The application's scenario of ``steps`` iterations: its control inputs (K, nu; an empty
+    column without any) and measurements (K, m)."""
+    sc = app.scenario(steps, seed)
+    us = np.zeros((steps, 0)) if sc.u is None else np.asarray(sc.u, dtype=np.float64).reshape(steps, -1)
+    return us, np.asarray(sc.z, dtype=np.float64).reshape(steps, -1)
 
 
 def central_differences(fn, at: np.ndarray, step: float) -> np.ndarray:

@@ -14,6 +14,7 @@ from kfgen.hdl.describe import RESERVED_WORDS, CoreDescriptor, ParamError, check
 NETLISTS = {
     "castella": "ef05fd63074557751f76e783be018eeec355ee5d600346f626a6c9aabdb6f162",
     "castella8": "9e8de5dc0ad2a1fd8719a0efafc756b38cb570418772032192bc74bff5e3be80",
+    "ekf": "ee2d8cbcb935bc1c48d7779e3b0d16acce27d2873d0eb958ee72fece19620d03",
     "fpu_add": "813fd0acf13b8fa1073da173466658b5de1c5fcb8f6a95254f77e250367c45a9",
     "fpu_div": "2b9c2787f9d4010536c13b5cd2d835deee2fd64ee8011b40e7d2e782417e6788",
     "fpu_exp": "d84b24fa3340f99d8e9e70e0be98cd97c8dc63e0a9d30f49ed5a32fc73fb2344",

@@ -41,6 +41,7 @@ RUN_HERE = {
     "kfgen ukf --app nanosat:Nanosat --on-chip --streams -o out/ukf_streams",
     "kfgen ukf --app nanosat:NanosatPrinted --on-chip --form sqrt -o out/ukf_sqrt",
     "kfgen fpu --op fma --target-mhz 125 -o out/fma125",
+    "kfgen ekf --app docs/examples/pendulum.py:Pendulum -o build/ekf-pendulum",
 }
 #: Of those, the one that needs the example application docs/examples/pendulum.py: run alone.
 PENDULUM = "kfgen ukf --app docs/examples/pendulum.py:Pendulum -o build/pendulum"
@@ -53,6 +54,9 @@ MAKE = {"make verilog", "make test", "make formal"}
 ELSEWHERE = {
     "kfgen ukf -o out/ukf": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
     "kfgen imm -o out/imm": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
+    "kfgen ekf --app tracker:Tracker -o out/ekf": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
+    "python -m kfgen.gen.bench_ekf": "tests/ekf/test_ekf_bench.py::test_the_docs_tables_are_the_bench",
+    "python -m kfgen.gen.bench_ekf --accuracy --seeds 100": "tests/ekf/test_ekf_bench.py::test_accuracy_block_runs",
     "kfgen schur --size 2 -o out/schur": "tests/common/test_cores.py::test_example_netlists_are_unchanged",
     "kfgen imm --models 3 --states 2 --measurements 2 --pes 2 --name imm_small -o out/imm_small":
         "tests/imm/test_imm_core.py::test_files_and_manifest",
@@ -88,6 +92,7 @@ ELSEWHERE = {
 FULL_HERE = {
     "kfgen schur --mul-latency 6 --add-latency 7 --div-cycles-per-op 26 --div-latency 27 -o out/schur_row4",
     "python -m kfgen.gen.cosim ukf --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/pendulum-cosim",
+    "python -m kfgen.gen.cosim ekf --app docs/examples/pendulum.py:Pendulum --steps 5 -o build/ekf-pendulum-cosim",
     "python -m kfgen.gen.cosim ukf --app nanosat:Nanosat --steps 5 --processor c --wait poll -o build/cosim_c",
     "python -m kfgen.gen.cosim ukf --app nanosat:Nanosat --on-chip --steps 10 -o build/on-chip",
     "python -m kfgen.gen.cosim ukf --app tracker:Tracker --on-chip --steps 10 -o build/tracker-on-chip",

@@ -97,7 +97,7 @@ def test_wheel_imports_from_itself(venv, tmp_path):
 #: The engine cores at a small size (their defaults take seconds each to schedule and emit,
 #: twice here; make verilog and test_cores build the defaults).
 SMALL = {"ukf": ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1"],
-         "imm": ["--models", "2", "--states", "2", "--measurements", "1"]}
+         "imm": ["--models", "2", "--states", "2", "--measurements", "1"], "ekf": ["--app", "tracker:Tracker"]}
 
 
 @pytest.mark.full

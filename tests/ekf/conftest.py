@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from kfgen.hdl.ekf.models import ekf_models
-from kfgen.sim.ukf.apps.nanosat import Nanosat
-from kfgen.sim.ukf.apps.tracker import Tracker
+from kfgen.hdl.engine.app import load_app
 
 
 class TrackerJacobians:
@@ -29,11 +28,11 @@ class TrackerJacobians:
 
 @pytest.fixture(scope="session")
 def tracker():
-    app = Tracker()
+    app = load_app("tracker:Tracker")
     return app, ekf_models(app)
 
 
 @pytest.fixture(scope="session")
 def nanosat():
-    app = Nanosat()
+    app = load_app("nanosat:Nanosat")
     return app, ekf_models(app)

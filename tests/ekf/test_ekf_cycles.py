@@ -4,7 +4,6 @@ UKF). The numbers are printed with ``pytest -s``."""
 
 import pytest
 
-import kfgen.sim.ukf.app  # noqa: F401  (the UKF's application loader, for --on-chip)
 from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.ekf.steps import programs as ekf_programs
 from kfgen.hdl.ekf.steps import schedules as ekf_schedules
@@ -22,7 +21,7 @@ def test_ekf_iteration_at_most_half_the_ukf(which, spec, pes, request, capsys):
     app, models = request.getfixturevalue(which)
     ekf = EkfParams(spec, app.n, app.m, app.nw, app.nv, app.nu, pes=pes)
     eprogs = ekf_programs(ekf, models)
-    e = ekf_schedules(ekf, eprogs)["iteration"].cycles
+    e = ekf_schedules(ekf, eprogs)["iterate"].cycles
     ukf = UkfParams(**app.core_parameters(), app=spec, on_chip=True, pes=pes)
     uprogs = ukf_programs(ukf)
     u = ukf_schedules(ukf, uprogs)["iteration"].cycles

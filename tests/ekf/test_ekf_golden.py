@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import TrackerJacobians
 
-from kfgen.hdl.ekf.models import ekf_models
+from kfgen.hdl.engine.app import load_app
 from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.ekf.steps import programs
 from kfgen.sim.ekf.golden import run_golden
@@ -94,10 +94,14 @@ def test_reference_is_filterpy_extended_kalman_filter(tracker):
     np.testing.assert_allclose(ref["P"] / scale, np.array(Ps) / scale, rtol=0, atol=1e-9)
 
 
-class _Pendulum:
-    """A user's own application: a control input, sin in f and h (their derivatives take the
-    cosine unit), and a second measurement that no state reaches (a zero row of H)."""
+#: A user's own application: a control input, sin in f and h (their derivatives take the
+#: cosine unit), and a second measurement that no state reaches (a zero row of H).
+PENDULUM = """
+import numpy as np
+from kfgen.hdl.engine.app import UkfApplication
 
+
+class Pendulum(UkfApplication):
     n, nw, nv, m, nu, dt = 2, 1, 2, 2, 1, 0.05
     x0 = np.array([0.3, 0.0])
     P0 = np.eye(2) * 0.1
@@ -109,13 +113,16 @@ class _Pendulum:
 
     def h(self, x, v):
         return np.array([np.sin(x[0]) + v[0], 1.0 + v[1]])
+"""
 
 
-def test_own_application_with_a_zero_row_of_h():
-    app = _Pendulum()
-    models = ekf_models(app)
+def test_own_application_with_a_zero_row_of_h(tmp_path):
+    (tmp_path / "pend_u.py").write_text(PENDULUM)
+    params = EkfParams(f"{tmp_path}/pend_u.py:Pendulum", format="binary64")
+    app = load_app(params.app)
+    models = params.models
     assert models.H.pattern.tolist() == [[True, False], [False, False]]
-    progs = programs(EkfParams("pendulum:Pendulum", 2, 2, 1, 2, 1, format="binary64"), models)
+    progs = programs(params)
     assert "zero" in progs.layout.regions and "cos" in progs.iteration.units
     rng = np.random.default_rng(4)
     us, zs = rng.normal(0, 1, (6, 1)), np.c_[rng.normal(0.3, 0.1, 6), rng.normal(1, 0.3, 6)]

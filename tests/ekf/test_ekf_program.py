@@ -18,8 +18,8 @@ SIZES = dict(states=4, observations=2, process_noise=2, measurement_noise=2)
 
 
 def test_params_defaults_and_sizes():
-    p = EkfParams("tracker:Tracker", **SIZES, inputs=1, pes=2)
-    assert p.sizes == (4, 2, 2, 2, 1) and p.div_sqrt == "pipelined" and p.banks == 4 and p.format.name == "binary32"
+    p = EkfParams("tracker:Tracker", **SIZES, inputs=0, pes=2)
+    assert p.sizes == (4, 2, 2, 2, 0) and p.div_sqrt == "pipelined" and p.banks == 4 and p.format.name == "binary32"
     assert EkfParams("tracker:Tracker", **SIZES, format="binary64").fmt.width == 64
 
 
@@ -29,7 +29,8 @@ def test_params_defaults_and_sizes():
     (dict(pes=17), "pes"), (dict(div_sqrt="fast"), "div_sqrt"), (dict(banks=1), "banks"),
     (dict(pes=8, banks=32), "pes"),
     (dict(format="binary128"), "format"), (dict(streams=1), "streams"), (dict(irq="yes"), "irq"),
-    (dict(name="module"), "name"), (dict(name="2x"), "name"),
+    (dict(name="module"), "name"), (dict(name="2x"), "name"), (dict(app=None), "app"),
+    (dict(app="nowhere:Nothing"), "app"), (dict(states=5), "app"), (dict(address_width=4), "address_width"),
 ])
 def test_params_refused_in_one_line(kw, param):
     args = {"app": "tracker:Tracker", **SIZES, **kw}
@@ -38,10 +39,15 @@ def test_params_refused_in_one_line(kw, param):
     assert err.value.param == param and "\n" not in str(err.value)
 
 
-def test_models_of_other_sizes_are_refused(tracker):
-    _, models = tracker
-    with pytest.raises(ParamError, match=r"app: the application has n, nw, nv, m, nu = \(4, 2, 2, 2, 0\)"):
-        programs(EkfParams("tracker:Tracker", **{**SIZES, "states": 5}), models)
+def test_the_application_sizes_the_core(tracker):
+    p = EkfParams("tracker:Tracker")
+    assert p.sizes == (4, 2, 2, 2, 0) and p.address_width == 8 and p.models is EkfParams("tracker:Tracker").models
+
+
+def test_models_of_other_sizes_are_refused(tracker, nanosat):
+    _, models = nanosat
+    with pytest.raises(ParamError, match=r"app: the application has n, nw, nv, m, nu = \(7, 7, 6, 6, 3\)"):
+        programs(EkfParams("tracker:Tracker"), models)
 
 
 def test_structured_products_are_numpy():
