@@ -73,19 +73,8 @@ def ukf(argv) -> int:
     it in the file's directory, whatever the directory the command runs in.
 
     Returns the exit status (:data:`EXIT_CODES`)."""
-    summary = textwrap.fill(" ".join(ukf.__doc__.split("\n\n")[0].split()), 88)
-    ap = _Parser(prog=f"{PROG} ukf", description=summary, epilog=EXIT_CODES,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--app", required=True,
-                    help="the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "
-                         "tracker:Tracker); it must define scenario(steps, seed)")
-    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
-    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
-    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
-    ap.add_argument("--format", default="binary32",
-                    help="the core's number format (default binary32); the C processor takes binary32 or binary64")
-    ap.add_argument("--processor", choices=("python", "c"), default="python",
-                    help="the Python software side or the generated C driver (default python)")
+    ap = _parser(ukf, "ukf", "the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "
+                 "tracker:Tracker); it must define scenario(steps, seed)", c_driver=True)
     ap.add_argument("--beats", choices=("burst", "single"), default="burst",
                     help="AXI bursts or single beats (default burst)")
     ap.add_argument("--wait", choices=("irq", "poll"), default="irq",
@@ -95,9 +84,7 @@ def ukf(argv) -> int:
                          "(software writes u and z only)")
     ap.add_argument("--form", choices=("ldl", "sqrt"), default="ldl",
                     help="the core's covariance form (kfgen ukf --form; default ldl)")
-    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
-    ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
-    args = ap.parse_args(argv)
+    args = _with_output(ap, "build/cosim").parse_args(argv)
     try:
         if args.steps < 1:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
@@ -161,19 +148,9 @@ def ekf(argv) -> int:
     point of P0, the scenario is well formed.
 
     Returns the exit status (:data:`EXIT_CODES`)."""
-    summary = textwrap.fill(" ".join(ekf.__doc__.split("\n\n")[0].split()), 88)
-    ap = _Parser(prog=f"{PROG} ekf", description=summary, epilog=EXIT_CODES,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--app", required=True,
-                    help="the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "
-                         "tracker:Tracker); it must define scenario(steps, seed)")
-    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
-    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
-    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
-    ap.add_argument("--format", default="binary32", help="the core's number format (default binary32)")
-    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
-    ap.add_argument("-o", "--out", default="build/cosim", help="work directory (default build/cosim)")
-    args = ap.parse_args(argv)
+    ap = _parser(ekf, "ekf", "the application, module:Class or path/file.py:Class (shipped: nanosat:Nanosat, "
+                 "tracker:Tracker); it must define scenario(steps, seed)", c_driver=False)
+    args = _with_output(ap, "build/cosim").parse_args(argv)
     try:
         if args.steps < 1:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
@@ -223,22 +200,10 @@ def imm(argv) -> int:
     spec is resolved here, once, as the UKF's (:func:`ukf`).
 
     Returns the exit status (:data:`EXIT_CODES`)."""
-    summary = textwrap.fill(" ".join(imm.__doc__.split("\n\n")[0].split()), 88)
-    ap = _Parser(prog=f"{PROG} imm", description=summary, epilog=EXIT_CODES,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--app", required=True,
-                    help="the application, path/file.py:Class or module:Class, a subclass of "
-                         "kfgen.sim.imm.app.ImmApplication (shipped example: docs/examples/imm_cv.py:ConstantVelocity)")
-    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
-    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
-    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
-    ap.add_argument("--format", default="binary32",
-                    help="the core's number format (default binary32); the C processor takes binary32 or binary64")
-    ap.add_argument("--processor", choices=("python", "c"), default="python",
-                    help="the Python software side or the generated C driver (default python)")
-    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
-    ap.add_argument("-o", "--out", default="build/cosim-imm", help="work directory (default build/cosim-imm)")
-    args = ap.parse_args(argv)
+    ap = _parser(imm, "imm", "the application, path/file.py:Class or module:Class, a subclass of "
+                 "kfgen.sim.imm.app.ImmApplication (shipped example: docs/examples/imm_cv.py:ConstantVelocity)",
+                 c_driver=True)
+    args = _with_output(ap, "build/cosim-imm").parse_args(argv)
     try:
         if args.steps < 1:
             raise ValueError(f"--steps must be a positive integer, not {args.steps}")
@@ -282,6 +247,34 @@ def imm(argv) -> int:
     print(f"files: {rtl} (cosim.npz, runs/cosim.log{', runs/cosim.fst' if args.waves else ''}"
           f"{f', {params.name}_driver.h/.c' if params.format.name in C_FORMATS else ''})")
     return 0
+
+
+def _parser(command, name: str, app_help: str, *, c_driver: bool) -> argparse.ArgumentParser:
+    """The options every co-simulation takes (``--app``, ``--steps``, ``--seed``, ``--pes``,
+    ``--format``, and ``--processor`` where the core has a C driver); ``command``'s docstring's
+    first paragraph is the description."""
+    summary = textwrap.fill(" ".join(command.__doc__.split("\n\n")[0].split()), 88)
+    ap = _Parser(prog=f"{PROG} {name}", description=summary, epilog=EXIT_CODES,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--app", required=True, help=app_help)
+    ap.add_argument("--steps", type=int, default=20, help="iterations (default 20)")
+    ap.add_argument("--seed", type=int, default=1, help="the scenario's seed (default 1)")
+    ap.add_argument("--pes", type=int, default=1, help="processing elements (default 1)")
+    if not c_driver:
+        ap.add_argument("--format", default="binary32", help="the core's number format (default binary32)")
+        return ap
+    ap.add_argument("--format", default="binary32",
+                    help="the core's number format (default binary32); the C processor takes binary32 or binary64")
+    ap.add_argument("--processor", choices=("python", "c"), default="python",
+                    help="the Python software side or the generated C driver (default python)")
+    return ap
+
+
+def _with_output(ap: argparse.ArgumentParser, out: str) -> argparse.ArgumentParser:
+    """``ap`` with the options every co-simulation ends with: ``--waves`` and ``-o``."""
+    ap.add_argument("--waves", action="store_true", help="write an FST waveform (runs/cosim.fst)")
+    ap.add_argument("-o", "--out", default=out, help=f"work directory (default {out})")
+    return ap
 
 
 class _Parser(argparse.ArgumentParser):
