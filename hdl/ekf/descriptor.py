@@ -8,6 +8,7 @@ from ..engine.descriptor import engine_docs, engine_manifest, engine_streams, en
     program_units
 from ..engine.params import GEN_CROSSBAR_MAX, GEN_PES_MAX, WORK_RULE
 from ..linalg.schedule import chain_bound
+from .core import Ekf
 from .params import SIZE_MAX, EkfParams, app_sizes
 from .regmap import CYCLES
 from .steps import programs
@@ -41,11 +42,6 @@ def _docs() -> dict[str, Doc]:
                        "diagonal of P", "", "a switch"),
         **{k: v for k, v in engine_docs().items() if k != "format"},
     }
-
-
-def _build(params):
-    from .core import Ekf
-    return Ekf(params)
 
 
 def _jacobians(progs) -> dict:
@@ -91,7 +87,7 @@ CORE = CoreDescriptor(
             "on P float PEs behind an AXI4 slave",
     params=EkfParams,
     docs=_docs,
-    build=_build,
+    build=Ekf,
     fields_of=lambda p, port: None,
     extra=_extra,
     examples=({"app": "tracker:Tracker"},),
