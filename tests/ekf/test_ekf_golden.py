@@ -5,7 +5,7 @@ filterpy's ExtendedKalmanFilter; err_pivot; P exactly symmetric."""
 
 import numpy as np
 import pytest
-from conftest import TrackerJacobians
+from ekf_jacobians import TrackerJacobians
 
 from kfgen.hdl.engine.app import load_app
 from kfgen.hdl.ekf.params import EkfParams

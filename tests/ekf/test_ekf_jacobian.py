@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import TrackerJacobians
+from ekf_jacobians import TrackerJacobians
 
 from kfgen.hdl.describe import ParamError
 from kfgen.hdl.ekf.jacobian import linearise
