@@ -103,6 +103,7 @@ def _hook_line() -> str:
     return line
 
 
+@pytest.mark.full  # a Verilator build of its own; make test generates the core and runs its golden model
 @pytest.mark.verilator
 def test_the_page_testbench_passes(page, tmp_path, monkeypatch):
     """The page's ``_HOOKS`` line bound, the core generated, built on Verilator and its

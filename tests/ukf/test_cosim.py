@@ -407,6 +407,7 @@ def test_relative_and_absolute_app_paths_generate_the_same_bytes(tmp_path, monke
     assert '"app": "pendulum.py:Pendulum"' in manifest and str(tmp_path) not in manifest
 
 
+@pytest.mark.full  # its own on-chip build; make test checks the bytes without one (above)
 @pytest.mark.verilator
 def test_on_chip_app_given_by_a_relative_path(build_root, tmp_path):
     """``--app myapps/pendulum.py:Pendulum --on-chip`` from the directory that holds myapps (the
