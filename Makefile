@@ -58,7 +58,7 @@ lint: verilog $(DEV)
 # Three on a 2-core machine: a worker waiting on a group's long serial tail leaves a core idle,
 # and the third fills it (pytest 8 min 8 s against 10 min 32 s with two, docs/development.md).
 # The slowest tests are listed so that a slower regression shows where the time went.
-PYTEST := $(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=15
+PYTEST := $(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=30
 
 test: $(DEV)
 	$(PYTEST) tests

@@ -31,9 +31,10 @@ pytestmark = pytest.mark.xdist_group("ipxact")  # one worker generates the three
 S = f"{{{SPIRIT}}}"
 NS = {"spirit": SPIRIT}
 
-#: (core, arguments, top): the cores with an AXI4 slave, the KF with its stream ports.
+#: (core, arguments, top): the cores with an AXI4 slave (small sizes: the XML does not depend on
+#: them beyond the map), the KF with its stream ports.
 CORES = [
-    ("ukf", [], "ukf"),
+    ("ukf", ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1"], "ukf"),
     ("imm", ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"], "imm"),
     ("kf", ["--states", "4", "--measurements", "2", "--inputs", "1", "--pes", "2", "--streams"], "kf"),
 ]

@@ -237,7 +237,7 @@ class Glitch(example.ConstantVelocity):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("imm_cosim")
-@pytest.mark.parametrize("processor", ["python", "c"])
+@pytest.mark.parametrize("processor", [pytest.param("python", marks=pytest.mark.full), "c"])
 def test_fault_is_one_line_exit_3(build_root, tmp_path, processor):
     """A numerical fault in the core: one line naming the iteration and the bit, exit 3, from
     either processor, and no cosim.npz (the example's core: test_documented_commands' build)."""

@@ -106,7 +106,7 @@ CONFIGURATIONS = [
     # --target-mhz: the FMA, divider and square root at the stages a target picks, the schedule after them
     pytest.param([*SMALL, "--target-mhz", "75", "--pes", "2"], id="small_t75_p2", marks=pytest.mark.full),
     # above the engine's own clock: the program store's fetch register too (each step a cycle longer)
-    pytest.param([*SMALL, "--target-mhz", "125", "--pes", "2"], id="small_t125_p2"),
+    pytest.param([*SMALL, "--target-mhz", "125", "--pes", "2"], id="small_t125_p2", marks=pytest.mark.full),
     pytest.param([*SMALL, "--format", "binary64", "--pes", "3"], id="small_binary64_p3", marks=pytest.mark.full),
     pytest.param(["--pes", "5"], id="m20_p5", marks=pytest.mark.full),
     pytest.param(["--pes", "10"], id="m20_p10", marks=pytest.mark.full),
