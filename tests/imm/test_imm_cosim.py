@@ -157,7 +157,7 @@ def test_driver_id_check_is_the_maps():
     assert "PES" not in text
 
 
-@pytest.mark.parametrize("fmt", ["binary32", "binary64"])
+@pytest.mark.parametrize("fmt", ["binary32", pytest.param("binary64", marks=pytest.mark.full)])
 def test_driver_compiles(tmp_path, fmt):
     """``kfgen imm`` writes the driver beside a binary32 or binary64 core; it compiles bare
     metal and with the MMIO hooks under -std=c99 -Wall -Wextra -Werror (and none for binary16)."""

@@ -47,6 +47,7 @@ def nanosat_python(nanosat_core):
         return {k: d[k] for k in d.files}
 
 
+@pytest.mark.full  # the chapter's core (M = 20) a second time; make test co-simulates the pendulum, Python and C
 @pytest.mark.verilator
 @pytest.mark.xdist_group("cosim_nanosat")
 def test_nanosat_python_processor(nanosat_python):
@@ -80,6 +81,7 @@ def test_nanosat_whole_run(nanosat_core):
         check_nanosat({k: d[k] for k in d.files}, 1.0)
 
 
+@pytest.mark.full  # the chapter's core (M = 20) a second time; make test co-simulates the pendulum, Python and C
 @pytest.mark.verilator
 @pytest.mark.xdist_group("cosim_nanosat")
 def test_nanosat_c_processor(nanosat_core, nanosat_python):
