@@ -24,7 +24,7 @@ def _counted(monkeypatch, module, name, counts):
 
 
 def test_a_streams_generation_builds_each_once(monkeypatch):
-    """``kfgen ukf --app nanosat:Nanosat --on-chip --streams --target-mhz 150`` through the API:
+    """``kfgen ukf --app tracker:Tracker --on-chip --streams --target-mhz 150`` through the API:
     the map (validation, core, manifest, documents), the programs (core, stream documents),
     the machine (schedules, timing) and the trace of f and h, each once."""
     counts = Counter()
@@ -32,7 +32,7 @@ def test_a_streams_generation_builds_each_once(monkeypatch):
                          (ukf_models, "trace")):
         _counted(monkeypatch, module, name, counts)
     ukf_models.compile_models.cache_clear()
-    made = generate_core("ukf", app="nanosat:Nanosat", on_chip=True, streams=True, target_mhz=150)
+    made = generate_core("ukf", app="tracker:Tracker", on_chip=True, streams=True, target_mhz=150)
     assert made.manifest["streams"] and made.manifest["timing"]
     assert counts == {"place_map": 1, "build_ukf": 1, "Machine": 1, "trace": 2}  # f and h
 

@@ -244,12 +244,12 @@ def test_help_lists_every_parameter(_written):
     for name, core in discover().items():
         assert name in top
         text = " ".join(_kfgen_help(name).split())  # undo line wrapping
+        resolved = resolved_defaults(core)  # (the EKF's with its example's application)
         for f in dataclasses.fields(core.params):
             switch = f.default is True  # a switch: --no-<name>
             assert ("--no-" + option(f.name)[2:] if switch else option(f.name)) in text, f.name
             # None: worked out from the other parameters; the help gives the number for their defaults
             # (an application has none); False: a switch that is off
-            resolved = resolved_defaults(core)  # (the EKF's with its example's application)
             shown = ("none" if f.name == "app" or f.default is None and getattr(resolved, f.name) is None else
                      f"{getattr(resolved, f.name)} (for the other options' defaults)" if f.default is None
                      else "on" if switch else "off" if f.default is False else f.default)

@@ -80,7 +80,7 @@ def test_local_cluster(tmp_path):
         from kfgen.hdl.ukf.descriptor import CORE
         from kfgen.hdl.ukf.params import UkfParams
         from kfgen.sim.ukf.app import load_app
-        app = "nanosat:Nanosat"
+        app = "tracker:Tracker"  # (the smallest shipped application: a few seconds to generate)
         params = UkfParams(**load_app(app).core_parameters(), app=app, on_chip=True, name="gen_oc")
         [(work, manifest)] = write_cores(CORE, [params], tmp_path / "app", runner)
     assert there[2] == ["generate-gen_add", "generate-gen_mul"], "one task a core"

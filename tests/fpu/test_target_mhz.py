@@ -132,6 +132,7 @@ def test_trig_units_have_no_model():
         assert unit_timing(op, "binary32") == (None, None)
 
 
+@pytest.mark.full  # two UKF cores generated (the --target-mhz RTL and bench tests run in make test)
 def test_bench_timing_engine_rows(tmp_path):
     """bench_timing's UKF rows: the manifest's timing, one core to measure per distinct choice
     (above the engine's own clock the fetch register makes a choice of its own)."""

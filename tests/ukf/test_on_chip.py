@@ -126,6 +126,7 @@ def generated(build_root):
     return out
 
 
+@pytest.mark.xdist_group("ukf_on_chip")  # (the module's core, generated once)
 def test_manifest(generated):
     m = json.loads((generated / "ukf_oc.json").read_text())
     p = UkfParams(**m["parameters"])
@@ -150,6 +151,7 @@ def progs_words(p) -> int:
     return programs(p).layout.size
 
 
+@pytest.mark.xdist_group("ukf_on_chip")  # (the module's core, generated once)
 def test_regenerate_command(generated, tmp_path):
     header = (generated / "ukf_oc.core").read_text().split("\n\n", 1)[0]
     (line,) = [ln[2:].strip() for ln in header.splitlines() if ln.startswith("#   kfgen ") and ln.endswith(" -o DIR")]
@@ -234,6 +236,7 @@ def streams_core(build_root):
     return out
 
 
+@pytest.mark.xdist_group("ukf_streams")  # (the module's core, generated once)
 def test_streams_manifest(streams_core):
     m = json.loads((streams_core / "ukf_st.json").read_text())
     st = m["streams"]
@@ -388,6 +391,7 @@ def test_ukf_page_table_is_the_schedules():
         assert steps == sum(s.cycles + OVERHEAD for s in schedules(UkfParams(pes=pes)).values()), row
 
 
+@pytest.mark.xdist_group("ukf_on_chip")  # (the module's core, generated once)
 def test_c_driver_compiles_bare_metal(generated, tmp_path):
     """The on-chip core's driver (TOP_iterate(dev, u, z)) as C99 with every warning an error,
     for a bare-metal processor."""
@@ -439,11 +443,11 @@ def test_figure12_sqrt(tmp_path, capsys):
 def test_config_file_names_the_application(tmp_path):
     """``app`` in a --config file does what --app does (the sizes, and the models on chip)."""
     cfg = tmp_path / "c.toml"
-    cfg.write_text('app = "nanosat:Nanosat"\non-chip = true\nstates = 7\n')
+    cfg.write_text('app = "tracker:Tracker"\non-chip = true\nstates = 4\n')
     proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "out")
     assert proc.returncode == 0, proc.stderr
     m = json.loads((tmp_path / "out" / "ukf.json").read_text())
-    assert (m["parameters"]["app"], m["parameters"]["on_chip"], list(m["cycles"])) == (NANOSAT, True, ["iteration", "noise"])
+    assert (m["parameters"]["app"], m["parameters"]["on_chip"], list(m["cycles"])) == (TRACKER, True, ["iteration", "noise"])
     cfg.write_text('app = "nosuch:App"\non-chip = true\n')
     proc = kfgen_in_process("ukf", "--config", cfg, "-o", tmp_path / "bad")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and f"(from {cfg} (app))" in proc.stderr, \
