@@ -26,6 +26,7 @@ from .cores import bind
 from .fusesoc import FlowOptions, constraints, core_file
 from .ipxact import files as ipxact_files
 from .manifest import dumps, manifest
+from .pydriver import files as pydriver_files
 from .smoke import testbench
 from .verilog import declared_names, emit, header, waivers
 
@@ -97,7 +98,8 @@ def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: 
 def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> dict[str, str]:
     """File name -> text of everything ``core`` produces for ``params``: the Verilog, its
     waivers, the manifest, the core's documents, the IP-XACT component ``TOP.xml`` and its Vivado
-    script ``TOP_ip.tcl`` (:mod:`kfgen.gen.ipxact`, for a core with an AXI4 slave), the smoke
+    script ``TOP_ip.tcl`` (:mod:`kfgen.gen.ipxact`, for a core with an AXI4 slave) and its Python
+    driver ``TOP_driver.py`` (:mod:`kfgen.gen.pydriver`, likewise), the smoke
     testbench ``TOP_tb.v`` (where the core has one), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
     (:mod:`kfgen.gen.fusesoc`; ``flow``, a :class:`~kfgen.gen.fusesoc.FlowOptions`, sets the
     clock and parts, default 100 MHz).
@@ -130,6 +132,7 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
         f"{top}.json": dumps(described),
         **core.documents(params),
         **ipxact_files(top, core.summary, described),
+        **pydriver_files(top, described),
     }
     if core.smoke is not None:
         files[f"{top}_tb.v"] = testbench(top, described, core.smoke(params, described), head)
