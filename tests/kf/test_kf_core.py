@@ -64,7 +64,7 @@ def sim(rtl):
 @pytest.mark.xdist_group("kf_core")
 def test_cocotb(rtl, sim):
     """Every case on the one build (n = 4, m = 2, nu = 1, P = 2, binary32, streams)."""
-    run_tb(sim, rtl, "kf_small", TB, ["iterations", "errors", "stream_iterations"], "all")
+    run_tb(sim, rtl, "kf_small", TB, ["iterations", "errors", "stream_iterations", "python_driver"], "all")
 
 
 @pytest.mark.verilator
