@@ -64,8 +64,8 @@ def plan(manifest) -> dict:
     """What the driver does, from the manifest: ``load`` ((argument, region, how) in order:
     ``how`` is ``"cholesky"`` for sqrtP, else ``None``; the first four arguments positional,
     x0, P0, Q, R where the core has them, the rest keyword-only), ``inputs`` (the step's
-    regions), ``steps`` (the CTRL.step values a step starts, in order; ``None`` for a CTRL
-    without a step field), ``estimate`` ((x region, P region or None))."""
+    regions), ``steps`` (the steps ``step`` starts, in order: CTRL.step's names, or the one
+    cycles key of a CTRL without a step field), ``estimate`` ((x region, P region or None))."""
     mems = {m["name"]: m for m in manifest["memories"]}
     ctrl = next(r for r in manifest["registers"] if r["name"] == "CTRL")
     step_field = next((f for f in ctrl["fields"] if f["name"] == "step"), None)
@@ -77,12 +77,12 @@ def plan(manifest) -> dict:
     taken = {name for _, name, _ in load}
     load += [(name, name, None) for name, m in mems.items()
              if m["role"] in ("input", "state") and name not in taken and name not in _STEP_INPUTS + _HOST]
-    if step_field is None:
-        steps = None
+    if step_field is None:  # one step, the manifest's one cycles key
+        steps = list(manifest["cycles"])
     elif "sig_gen" in step_field["values"] and "sigma_points" in mems:
         steps = ["sig_gen", "predict", "update"]
-    else:
-        steps = ["iteration"]
+    else:  # one start an iteration (a steady-gain KF's gain is its prologue, which the core runs)
+        steps = [next(s for s in ("iteration", "iterate") if s in step_field["values"])]
     estimate = ("x", next((n for n in ("P", "sqrtP") if n in mems), None))
     return {"load": load, "inputs": [n for n in _STEP_INPUTS if n in mems], "steps": steps, "estimate": estimate}
 
@@ -99,7 +99,7 @@ def _data(top: str, manifest) -> str:
            "frac_bits": ident["frac_bits"]["reset"], "words": words}
     p = plan(manifest)
     ctrl_steps = next((f["values"] for f in regs["CTRL"]["fields"] if f["name"] == "step"), {})
-    steps = None if p["steps"] is None else {s: ctrl_steps[s] for s in p["steps"]}
+    steps = {s: ctrl_steps.get(s) for s in p["steps"]}
     return "".join([
         _literal("VLNV", vlnv(top)),
         _literal("CORE", manifest["core"]),
@@ -115,7 +115,8 @@ def _data(top: str, manifest) -> str:
         _literal("REGIONS", {m["name"]: (m["offset"], *m["shape"], m["role"]) for m in manifest["memories"]}),
         "#: load's arguments: (argument, region, conversion).\n",
         _literal("LOAD", p["load"]),
-        "#: The regions a step writes, and the CTRL.step values it starts (None: CTRL has no step field).\n",
+        "#: The regions a step writes, and the steps it starts: name -> CTRL.step value (None: CTRL has\n"
+        "#: no step field).\n",
         _literal("INPUTS", p["inputs"]),
         _literal("STEPS", steps),
         "#: The regions of the estimate: x and P (P: None when the core keeps no covariance).\n",
@@ -247,7 +248,8 @@ def to_words(values) -> list:
     v = np.ravel(np.asarray(values, dtype=np.float64))
     kind = _NUMPY.get((FORMAT["exp_bits"], FORMAT["frac_bits"]))
     if kind is not None:  # numpy rounds to nearest even as well; NaNs are made canonical
-        elements = [int(w) for w in v.astype(kind[0]).view(kind[1])]
+        with np.errstate(over="ignore", invalid="ignore"):  # (overflow rounds to infinity)
+            elements = [int(w) for w in v.astype(kind[0]).view(kind[1])]
         nan = np.isnan(v)
         if nan.any():
             elements = [_word(math.nan) if n else w for w, n in zip(elements, nan)]
@@ -362,9 +364,8 @@ class @CLASS@(DefaultIP):
         return from_words(words).reshape(rows, cols)
 
     # ------------------------------------------------------------- steps
-    def run(self, step=None) -> dict:
-        """Start ``step`` (a CTRL.step value's name; None for a core without one), wait for it,
-        clear STATUS; STATUS as it ended, decoded.
+    def run(self, step: str) -> dict:
+        """Start ``step`` (one of STEPS), wait for it, clear STATUS; STATUS as it ended, decoded.
 
         Raises
         ------
@@ -375,7 +376,7 @@ class @CLASS@(DefaultIP):
         """
         ctrl = REGISTERS["CTRL"][1]
         word = 1 << ctrl["start"][0]
-        if step is not None:
+        if STEPS[step] is not None:
             word |= STEPS[step] << ctrl["step"][0]
         self._write_reg("CTRL", word)
         for _ in range(POLLS):
@@ -385,11 +386,11 @@ class @CLASS@(DefaultIP):
             if self.wait_event is not None:
                 self.wait_event()
         else:
-            raise CoreTimeout(f"{step or 'the step'} not done after {POLLS} reads of STATUS")
+            raise CoreTimeout(f"{step} not done after {POLLS} reads of STATUS")
         self._write_reg("STATUS", status & self._events())  # write 1 to clear
         self.last_status = fields(status, "STATUS")
         if status & (self._events() & ~(1 << REGISTERS["STATUS"][1]["done"][0])):
-            raise CoreFault(step or "iteration", self.last_status)
+            raise CoreFault(step, self.last_status)
         return self.last_status
 
     def load(self, @LOAD_PARAMS@) -> None:
@@ -419,7 +420,7 @@ class @CLASS@(DefaultIP):
         CoreFault
             When a step raised err_pivot or err_nan (the estimate is then not usable).
         """
-        if STEPS is not None and "sig_gen" in STEPS:
+        if "sig_gen" in STEPS:
             self._three_steps(z, u, f or self.f, h or self.h)
         else:
             self.write_region("z", z)
@@ -427,7 +428,7 @@ class @CLASS@(DefaultIP):
                 if u is None:
                     raise ValueError("this core takes a control input u")
                 self.write_region("u", u)
-            self.run(None if STEPS is None else "iteration")
+            self.run(next(iter(STEPS)))
         return self.estimate()
 
     f = h = None
