@@ -59,7 +59,7 @@ def rtl(build_root):
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}*"))
     assert names == sorted([f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
-                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v"])
+                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v", f"{TOP}_driver.py"])
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = EkfParams(**man["parameters"])
     assert params.sizes == (4, 2, 2, 2, 0) and params.pes == 2 and params.app == "tracker:Tracker"

@@ -32,6 +32,7 @@ def rtl(build_root):
 def test_files_and_manifest(rtl):
     names = {p.name for p in rtl.glob("kf_small.*")}
     assert {f"kf_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xml")} <= names
+    assert (rtl / "kf_small_driver.py").is_file()
     man = json.loads((rtl / "kf_small.json").read_text())
     params = KfParams(**man["parameters"])
     assert (params.n, params.m, params.nu, params.pes, params.streams) == (4, 2, 1, 2, True)
