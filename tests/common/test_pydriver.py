@@ -6,6 +6,7 @@ device. Each core's run of the driver on its golden device is in its own tests
 (``tests/<core>/test_<core>_driver.py``), on the RTL in the cocotb runs."""
 
 import math
+import re
 import sys
 import types
 import xml.etree.ElementTree as ET
@@ -13,7 +14,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from kfgen.gen.ipxact import SPIRIT, component
+from kfgen.gen.ipxact import SPIRIT, component, vlnv
 from kfgen.gen.pydriver import TAKEN, class_name, text
 from kfgen.hdl.arith.float.format import FloatFormat
 from kfgen.hdl.kf.params import KfParams
@@ -22,7 +23,7 @@ from kfgen.sim.engine.device import GoldenDevice
 from kfgen.sim.kf.tb import system
 from kfgen.sim.linalg.exec import from_words, to_words
 
-from helpers import python_driver
+from helpers import ROOT, python_driver
 
 KF = dict(states=3, measurements=2, inputs=1, pes=1)
 
@@ -157,3 +158,51 @@ def test_class_name_never_hides_a_module_name(tmp_path):
     assert {class_name(t) for t in TAKEN} == {f"{t}_core" for t in TAKEN}
     man, drv = python_driver(tmp_path, "kf", name="np", **KF)
     assert drv.np_core.bindto == [drv.VLNV] and drv.np is np
+
+
+def test_the_docs_pynq_example_runs(tmp_path, monkeypatch):
+    """docs/vendor-flows.md's notebook, on a stand-in for PYNQ: its DefaultIP registers every
+    subclass's ``bindto`` as PYNQ's does, its Overlay gives each IP of the design (here the
+    core as TOP_ip.tcl names it, ``TOP_0``) as an object of the class bound to its VLNV, with
+    the golden device as its MMIO."""
+    code = re.search(r"^```python\n(# on the Zynq board.*?)^```", (ROOT / "docs" / "vendor-flows.md").read_text(),
+                     re.M | re.S).group(1)
+    command = re.search(r"^kfgen kf (.*) -o out/kf_small$", (ROOT / "docs" / "vendor-flows.md").read_text(), re.M)
+    args = command.group(1).split()
+    assert args == ["--states", "4", "--measurements", "2", "--inputs", "1", "--pes", "2", "--streams", "--name",
+                    "kf_small"]
+    man, _ = python_driver(tmp_path, "kf", states=4, measurements=2, inputs=1, pes=2, streams=True, name="kf_small")
+    device = GoldenDevice(man, KfParams, programs)
+    man_vlnv = vlnv("kf_small")
+    bound = {}
+    pynq = types.ModuleType("pynq")
+
+    class DefaultIP:
+        def __init_subclass__(cls, **kwargs):
+            super().__init_subclass__(**kwargs)
+            for vlnv in getattr(cls, "bindto", ()):
+                bound[vlnv] = cls
+
+        def __init__(self, description):
+            self.mmio = description["mmio"]
+
+    class Overlay:
+        def __init__(self, bitfile):
+            assert bitfile == "design.bit"
+
+        def __getattr__(self, name):
+            assert name == "kf_small_0", name
+            return bound[man_vlnv]({"mmio": device})
+
+    pynq.DefaultIP, pynq.Overlay = DefaultIP, Overlay
+    monkeypatch.setitem(sys.modules, "pynq", pynq)
+    monkeypatch.delitem(sys.modules, "kf_small_driver", raising=False)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    namespace = {"__name__": "notebook"}
+    exec(compile(code, "vendor-flows.md example", "exec"), namespace)
+    assert device.steps == ["iterate"] * 5
+    x, P = namespace["x"], namespace["P"]
+    assert np.array_equal(x, device.values("x").ravel()) and np.array_equal(P, device.values("P"))
+    assert namespace["kf"].last_status["done"] == 1
+    sys.modules.pop("kf_small_driver", None)  # (imported by the notebook from tmp_path)
