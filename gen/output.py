@@ -33,8 +33,8 @@ from .verilog import declared_names, emit, header, waivers
 __all__ = ["generate", "write_files", "command", "check_name_fits", "check_output", "port_names",
            "NAME_MAX"]
 
-#: The longest ``--name``: every file is TOP plus a suffix of at most 9 characters
-#: (``TOP_driver.h``), and file systems cap a file name at 255 bytes; 64 keeps the names
+#: The longest ``--name``: every file is TOP plus a suffix of at most 10 characters
+#: (``TOP_driver.py``), and file systems cap a file name at 255 bytes; 64 keeps the names
 #: readable and leaves room for the writer's temporary names.
 NAME_MAX = 64
 
@@ -47,7 +47,7 @@ def check_name_fits(name) -> None:
     """Raise ``ParamError("name", ...)`` for a top name longer than :data:`NAME_MAX`."""
     if isinstance(name, str) and len(name) > NAME_MAX:
         raise ParamError("name", f"must be at most {NAME_MAX} characters (it names every file written, "
-                                 f"TOP.v to TOP_driver.h), not {len(name)}")
+                                 f"TOP.v to TOP_driver.py), not {len(name)}")
 
 
 def port_names(component) -> set[str]:
