@@ -119,6 +119,14 @@ def test_cocotb(rtl, sim):
 
 
 @pytest.mark.verilator
+@pytest.mark.full
+@pytest.mark.xdist_group("ekf_core")
+def test_python_driver(rtl, sim):
+    """The generated Python driver on the one build (kfgen.sim.ekf.tb.python_driver)."""
+    run_tb(sim, rtl, TOP, TB, ["python_driver"], "python_driver")
+
+
+@pytest.mark.verilator
 @pytest.mark.xdist_group("ekf_core")
 @pytest.mark.parametrize("sequences", [ENGINE_CAMPAIGN[0], pytest.param(ENGINE_CAMPAIGN[1], marks=pytest.mark.full)])
 def test_fault_campaign(rtl, sim, sequences):

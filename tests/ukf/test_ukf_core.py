@@ -85,7 +85,8 @@ def sim(rtl):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("ukf_core")
-@pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
+@pytest.mark.parametrize("tests", [["iterations"], ["errors"], pytest.param(["python_driver"], marks=pytest.mark.full)],
+                         ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (n = 2, m = 1, nw = nv = 1, P = 1, binary32)."""
     run_tb(sim, rtl, TOP, TB, tests, tests[0])
