@@ -413,7 +413,7 @@ class @CLASS@(DefaultIP):
                     raise CoreFault("load", {"err_pivot": 1}) from None
             self.write_region(name, value)
 
-    def step(self, z, u=None, f=None, h=None):
+    def step(self, z=None, u=None, f=None, h=None):
         """One filter iteration on the measurement ``z`` (and the control input ``u``, where the
         core has one); the estimate ``(x, P)`` after it (:meth:`estimate`).
 
@@ -430,11 +430,12 @@ class @CLASS@(DefaultIP):
         if "sig_gen" in STEPS:
             self._three_steps(z, u, f or self.f, h or self.h)
         else:
-            self.write_region("z", z)
-            if "u" in INPUTS:
-                if u is None:
-                    raise ValueError("this core takes a control input u")
-                self.write_region("u", u)
+            for name, value in (("z", z), ("u", u)):
+                if name in INPUTS:
+                    if value is None:
+                        raise ValueError(f"this core takes {'a measurement' if name == 'z' else 'a control input'} "
+                                         f"{name}")
+                    self.write_region(name, value)
             self.run(next(iter(STEPS)))
         return self.estimate()
 
