@@ -39,7 +39,7 @@ import keyword
 
 from .ipxact import vlnv
 
-__all__ = ["files", "plan", "class_name", "TAKEN"]
+__all__ = ["files", "text", "plan", "class_name", "TAKEN"]
 
 #: Regions a step writes (in this order) before its start.
 _STEP_INPUTS = ("z", "u")

@@ -152,7 +152,9 @@ def test_timeout_bounds_the_wait(kf):
     assert len(reads) == drv.POLLS == 2 * sum(man["cycles"].values()) + 1000
 
 
-def test_class_name_never_hides_a_module_name(tmp_path):
+def test_class_name_never_hides_a_module_name(tmp_path, kf):
+    _, module = kf
+    assert {k for k in vars(module) if not k.startswith("__")} - {"kf_drv"} == TAKEN  # every name it defines
     assert class_name("kf_small") == "kf_small"
     assert class_name("match") == "match_core" and class_name("lambda") == "lambda_core"
     assert {class_name(t) for t in TAKEN} == {f"{t}_core" for t in TAKEN}
