@@ -131,8 +131,8 @@ def _writes(core: CoreDescriptor) -> str:
     if core.smoke is not None:
         names.append(f"{top}_tb.v")
     names += [f"{top}.xdc", f"{top}.sdc"]
-    if f"{top}.rdl" in names:  # a register map is an AXI4 slave's: kfgen.gen.ipxact writes these for it
-        names += [f"{top}.xml", f"{top}_ip.tcl"]
+    if f"{top}.rdl" in names:  # a register map is an AXI4 slave's: kfgen.gen.ipxact and pydriver write these
+        names += [f"{top}.xml", f"{top}_ip.tcl", f"{top}_driver.py"]
     names.append(f"{top}.core")
     return ", ".join("DIR/TOP" + n[len(top):] for n in names)
 
@@ -163,8 +163,9 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
                        "core's documents (register map TOP.rdl, C header TOP.h, TOP.md, C driver TOP_driver.h and "
                        "TOP_driver.c, where it has them), and for vendor flows the FuseSoC core DIR/TOP.core, its "
                        "smoke testbench DIR/TOP_tb.v, the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc "
-                       "(Quartus), and for a core with an AXI4 slave the IP-XACT component DIR/TOP.xml and its "
-                       f"Vivado block-design script DIR/TOP_ip.tcl; TOP is --name (at most {NAME_MAX} characters)."
+                       "(Quartus), and for a core with an AXI4 slave the IP-XACT component DIR/TOP.xml, its "
+                       "Vivado block-design script DIR/TOP_ip.tcl and a Python driver DIR/TOP_driver.py (PYNQ); "
+                       f"TOP is --name (at most {NAME_MAX} characters)."
                        + (f" This core writes: {_writes(core)}." if resolved is not None else ""), 95, break_on_hyphens=False, break_long_words=False))
         g = p.add_argument_group("parameters")
         for field in defaults:

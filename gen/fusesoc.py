@@ -8,8 +8,10 @@ synthesis or a vendor project::
 
 The file lists the Verilog (``verilogSource``), the lint waivers (``vlt``: Verilator reads
 them before the Verilog), the smoke testbench (``TOP_tb.v``, where the core has one), the
-constraints, and the manifest, register map, C header and driver and register document as
-``user`` files. Its targets:
+constraints, and the manifest, register map, C header, C and Python drivers (``TOP_driver.py``:
+no tool of a target reads it, but FuseSoC copies ``user`` files with the core, so an exported
+core keeps its software), IP-XACT component and register document as ``user`` files. Its
+targets:
 
 ``lint``          Verilator ``--lint-only -Wall`` with the waivers
 ``sim``           Icarus Verilog runs ``TOP_tb``: PASS, or FAIL and a nonzero exit

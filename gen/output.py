@@ -26,14 +26,15 @@ from .cores import bind
 from .fusesoc import FlowOptions, constraints, core_file
 from .ipxact import files as ipxact_files
 from .manifest import dumps, manifest
+from .pydriver import files as pydriver_files
 from .smoke import testbench
 from .verilog import declared_names, emit, header, waivers
 
 __all__ = ["generate", "write_files", "command", "check_name_fits", "check_output", "port_names",
            "NAME_MAX"]
 
-#: The longest ``--name``: every file is TOP plus a suffix of at most 9 characters
-#: (``TOP_driver.h``), and file systems cap a file name at 255 bytes; 64 keeps the names
+#: The longest ``--name``: every file is TOP plus a suffix of at most 10 characters
+#: (``TOP_driver.py``), and file systems cap a file name at 255 bytes; 64 keeps the names
 #: readable and leaves room for the writer's temporary names.
 NAME_MAX = 64
 
@@ -46,7 +47,7 @@ def check_name_fits(name) -> None:
     """Raise ``ParamError("name", ...)`` for a top name longer than :data:`NAME_MAX`."""
     if isinstance(name, str) and len(name) > NAME_MAX:
         raise ParamError("name", f"must be at most {NAME_MAX} characters (it names every file written, "
-                                 f"TOP.v to TOP_driver.h), not {len(name)}")
+                                 f"TOP.v to TOP_driver.py), not {len(name)}")
 
 
 def port_names(component) -> set[str]:
@@ -97,7 +98,8 @@ def command(core: CoreDescriptor, params, flow: FlowOptions | None = None, out: 
 def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> dict[str, str]:
     """File name -> text of everything ``core`` produces for ``params``: the Verilog, its
     waivers, the manifest, the core's documents, the IP-XACT component ``TOP.xml`` and its Vivado
-    script ``TOP_ip.tcl`` (:mod:`kfgen.gen.ipxact`, for a core with an AXI4 slave), the smoke
+    script ``TOP_ip.tcl`` (:mod:`kfgen.gen.ipxact`, for a core with an AXI4 slave) and its Python
+    driver ``TOP_driver.py`` (:mod:`kfgen.gen.pydriver`, likewise), the smoke
     testbench ``TOP_tb.v`` (where the core has one), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
     (:mod:`kfgen.gen.fusesoc`; ``flow``, a :class:`~kfgen.gen.fusesoc.FlowOptions`, sets the
     clock and parts, default 100 MHz).
@@ -130,6 +132,7 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
         f"{top}.json": dumps(described),
         **core.documents(params),
         **ipxact_files(top, core.summary, described),
+        **pydriver_files(top, described),
     }
     if core.smoke is not None:
         files[f"{top}_tb.v"] = testbench(top, described, core.smoke(params, described), head)

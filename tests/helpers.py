@@ -125,3 +125,52 @@ EVERY_ELABORATABLE_USED = [
     pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning"),
     pytest.mark.usefixtures("elaboratables_collected"),
 ]
+
+
+def python_driver(directory, core_name, **params):
+    """Core ``core_name``'s manifest with ``params`` (the component built, no Verilog emitted:
+    a fraction of a second) and its generated ``TOP_driver.py`` (:mod:`kfgen.gen.pydriver`),
+    written into ``directory`` and imported: (manifest, module)."""
+    import importlib.util
+
+    from kfgen.gen.cores import discover
+    from kfgen.gen.manifest import manifest
+    from kfgen.gen.output import recorded
+    from kfgen.gen.pydriver import files
+
+    core = discover()[core_name]
+    p = core.params(**params)
+    component = core.build(p)
+    man = manifest(core.name, p.name, recorded(p), component, lambda port: core.fields_of(p, port),
+                   core.extra(p, component))
+    (path, text), = files(p.name, man).items()
+    (Path(directory) / path).write_text(text)
+    spec = importlib.util.spec_from_file_location(Path(path).stem, Path(directory) / path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return man, module
+
+
+class GoldenRun:
+    """The golden model driven by hand: region writes rounded by the simulation's own
+    ``to_words``, starts run by the programs (with their prologue). What a driver's accesses
+    must leave in the core's memory (``mem``)."""
+
+    def __init__(self, programs):
+        from kfgen.sim.engine.prologue import Prologue
+
+        self.programs = programs
+        self.mem = programs.layout.initial_memory()
+        self.prologue = Prologue(programs)
+
+    def write(self, name, values):
+        import numpy as np
+
+        from kfgen.sim.linalg.exec import to_words
+
+        reg = self.programs.layout[name]
+        self.mem[reg.base:reg.base + reg.size] = to_words(self.programs.fmt, np.ravel(values))
+        self.prologue.wrote(name)
+
+    def run(self, step):
+        return self.prologue.run(step, self.mem)

@@ -28,6 +28,7 @@ from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.ekf.steps import programs
 from kfgen.hdl.engine.app import load_app
 from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.driver_tb import golden, python_driver as run_python_driver
 from kfgen.sim.ekf.reference import measurements
 from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
 from kfgen.sim.linalg.exec import run, to_words
@@ -220,3 +221,27 @@ async def stream_iterations(dut):
         await tb.check(name)
     assert [c.transfers for c in checks] == [steps, steps], [c.transfers for c in checks]
     assert checks[1].waits > 0  # the sink's backpressure held the estimate at least once
+
+
+def driver_session(core, tb, module, iterations=4):
+    """The generated driver's session (:func:`kfgen.sim.engine.driver_tb.python_driver`, in its
+    thread): the application's x0, P0, Q, R, then ``iterations`` of its scenario (half waiting
+    on irq, half polling STATUS), each estimate equal to the golden model's."""
+    app = load_app(tb.params.app)
+    core.load(app.x0, app.P0, app.Q, app.R)
+    us, zs = measurements(app, iterations, int(tb.rng.integers(1 << 16)))
+    for it, (u, z) in enumerate(zip(us, zs)):
+        if it == iterations // 2:
+            core.wait_event = None  # poll STATUS from now on
+        x, P = core.step(z, u if tb.params.nu else None)
+        assert np.array_equal(x, golden(tb, "x").ravel()) and np.array_equal(P, golden(tb, "P")), it
+    return iterations
+
+
+@cocotb.test()
+async def python_driver(dut):
+    """The generated Python driver ``TOP_driver.py`` runs the EKF through AXI4
+    (:mod:`kfgen.sim.engine.driver_tb`): every word it reads equals the golden model's, its
+    estimates too."""
+    done = await run_python_driver(dut, EkfTB, driver_session)
+    dut._log.info("python driver: %d iterations", done)

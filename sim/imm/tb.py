@@ -24,6 +24,7 @@ from cocotbext.axi import AxiResp
 from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
 from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.driver_tb import golden, python_driver as run_python_driver
 from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
 from kfgen.sim.imm.golden import buffer_values
 from kfgen.sim.imm.scenario import SEED, satlink
@@ -210,3 +211,31 @@ async def scenario(dut):
     if os.environ.get("KFGEN_IMM_OUT"):
         np.savez(os.environ["KFGEN_IMM_OUT"], mu=np.array(mu), x=np.array(x), xs=np.array(xs), P=np.array(P),
                  seed=sc.seed, cycles=int((get_sim_time("ns") - t0) // CLOCK_NS))
+
+
+def driver_session(core, tb, module, iterations=4):
+    """The generated driver's session (:func:`kfgen.sim.engine.driver_tb.python_driver`, in its
+    thread): load the model set, ``iterations`` iterations (half waiting on irq, half polling
+    STATUS), each combined estimate and the model probabilities equal to the golden model's."""
+    p = tb.params
+    values = system(p, tb.rng)
+    core.load(**{arg: values[name] for arg, name, _ in module.LOAD})
+    H, F = values["H"][:p.d], values["F"][:p.n]
+    truth = values["x_model"][0].copy()
+    for it in range(iterations):
+        if it == iterations // 2:
+            core.wait_event = None  # poll STATUS from now on
+        truth = F @ truth
+        x, P = core.step(H @ truth + tb.rng.normal(0, 0.3, p.d))
+        assert np.array_equal(x, golden(tb, "x").ravel()) and np.array_equal(P, golden(tb, "P")), it
+        assert np.array_equal(core.read_region("mu"), golden(tb, "mu")), it
+    return iterations
+
+
+@cocotb.test()
+async def python_driver(dut):
+    """The generated Python driver ``TOP_driver.py`` runs the IMM through AXI4
+    (:mod:`kfgen.sim.engine.driver_tb`): every word it reads equals the golden model's, its
+    estimates too."""
+    done = await run_python_driver(dut, ImmTB, driver_session)
+    dut._log.info("python driver: %d iterations", done)

@@ -24,6 +24,7 @@ from cocotbext.axi import AxiResp, AxiStreamBus, AxiStreamFrame, AxiStreamSink, 
 from kfgen.hdl.ukf.params import UkfParams, covariance_region
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.engine.campaign import engine_campaign
+from kfgen.sim.engine.driver_tb import golden, python_driver as run_python_driver
 from kfgen.sim.engine.tb import CLOCK_NS, TB, holes, setup, wait_idle, watchdog_fires
 from kfgen.sim.linalg.exec import from_words, to_words
 from kfgen.sim.streams import StreamChecker
@@ -320,3 +321,34 @@ async def errors(dut):
     assert not await tb.read_reg("STATUS") & 1
     await tb.check("sigma_points")
     await watchdog_fires(tb, "sig_gen")
+
+
+def driver_session(core, tb, module, iterations=4):
+    """The generated driver's session (:func:`kfgen.sim.engine.driver_tb.python_driver`, in its
+    thread) on a core of the chapter's three steps: load, ``iterations`` iterations with f and
+    h in the driver (half waiting on irq, half polling STATUS), each estimate equal to the
+    golden model's."""
+    p = tb.params
+    assert "sig_gen" in module.STEPS, "the driver's session runs the three-step form"
+    x0, P0 = start_values(tb)
+    core.load(x0, P0, *noise(tb))
+    truth = np.array(x0)
+    for it in range(iterations):
+        if it == iterations // 2:
+            core.wait_event = None  # poll STATUS from now on
+        truth = f(truth, np.zeros(p.nw))
+        z = h(truth, np.zeros(p.nv)) + tb.rng.normal(0, 0.1, p.m)
+        x, P = core.step(z, f=lambda x, w, u: f(x, w), h=h)
+        assert np.array_equal(x, golden(tb, "x").ravel()), (it, x)
+        S = golden(tb, covariance_region(p.form))
+        assert np.array_equal(P, np.tril(S) @ np.tril(S).T if p.form == "sqrt" else S), (it, P)
+    return iterations
+
+
+@cocotb.test()
+async def python_driver(dut):
+    """The generated Python driver ``TOP_driver.py`` runs the filter through AXI4, f and h in
+    it (:mod:`kfgen.sim.engine.driver_tb`): every word it reads equals the golden model's,
+    its estimates too."""
+    done = await run_python_driver(dut, UkfTB, driver_session)
+    dut._log.info("python driver: %d iterations", done)

@@ -288,7 +288,8 @@ HELP_DEFAULTS = [  # (core, text its --help must hold): the latencies the units 
     ("fpu", "default 6 (for the other options' defaults)"),
     ("ukf", "default 2 (for the other options' defaults)"), ("ukf", "default iterative (for the other"),
     ("ukf", "default 13 (for the other options' defaults)"), ("imm", "default 2 (for the other options' defaults)"),
-    ("ukf", "DIR/TOP_driver.h, DIR/TOP_driver.c"),
+    ("ukf", "DIR/TOP_driver.h, DIR/TOP_driver.c"), ("ukf", "DIR/TOP_ip.tcl, DIR/TOP_driver.py, DIR/TOP.core"),
+    ("imm", "DIR/TOP_ip.tcl, DIR/TOP_driver.py, DIR/TOP.core"),
 ]
 
 

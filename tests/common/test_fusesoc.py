@@ -83,7 +83,7 @@ def test_core_file_lists_every_file(generated):
     assert sets["smoke_tb"]["files"] == ["ukf_small_tb.v"]
     assert sets["docs"]["file_type"] == "user"
     assert set(sets["docs"]["files"]) == {f"ukf_small{s}" for s in (".json", ".rdl", ".h", ".md", "_driver.h",
-                                                                    "_driver.c", ".xml", "_ip.tcl")}
+                                                                    "_driver.c", ".xml", "_ip.tcl", "_driver.py")}
     listed = {f for s in sets.values() for f in s["files"]} | {"ukf_small.core"}
     assert listed == {p.name for p in out.iterdir()}, "the core lists every generated file"
     assert set(core["targets"]) == {"default", "lint", "sim", "synth", "synth_xilinx", "vivado", "quartus"}

@@ -59,7 +59,7 @@ def rtl(build_root):
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}*"))
     assert names == sorted([f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
-                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v"])
+                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v", f"{TOP}_driver.py"])
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = EkfParams(**man["parameters"])
     assert params.sizes == (4, 2, 2, 2, 0) and params.pes == 2 and params.app == "tracker:Tracker"
@@ -116,6 +116,14 @@ def test_cocotb(rtl, sim):
     """The tracker's scenario over the bus, the bus and fault cases with err_pivot, and the
     stream ports, on the one build (n = 4, m = 2, P = 2, binary32)."""
     run_tb(sim, rtl, TOP, TB, ["iterations", "errors", "stream_iterations"], "all")
+
+
+@pytest.mark.verilator
+@pytest.mark.full
+@pytest.mark.xdist_group("ekf_core")
+def test_python_driver(rtl, sim):
+    """The generated Python driver on the one build (kfgen.sim.ekf.tb.python_driver)."""
+    run_tb(sim, rtl, TOP, TB, ["python_driver"], "python_driver")
 
 
 @pytest.mark.verilator

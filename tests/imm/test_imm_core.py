@@ -77,7 +77,8 @@ def sim(rtl):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("imm_core")
-@pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
+@pytest.mark.parametrize("tests", [["iterations"], ["errors"], pytest.param(["python_driver"], marks=pytest.mark.full)],
+                         ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (R = 3, n = 2, d = 2, P = 2, binary32)."""
     run_tb(sim, rtl, "imm_small", TB, tests, tests[0])

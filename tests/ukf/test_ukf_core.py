@@ -33,7 +33,7 @@ def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}.*"))
     assert names == sorted(f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
                                                       "xml"))
-    assert (rtl / f"{TOP}_ip.tcl").is_file()
+    assert (rtl / f"{TOP}_ip.tcl").is_file() and (rtl / f"{TOP}_driver.py").is_file()
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = UkfParams(**man["parameters"])
     assert (params.n, params.m, params.nw, params.nv, params.w0) == (2, 1, 1, 1, 0.25)
@@ -85,7 +85,8 @@ def sim(rtl):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("ukf_core")
-@pytest.mark.parametrize("tests", [["iterations"], ["errors"]], ids=lambda t: t[0])
+@pytest.mark.parametrize("tests", [["iterations"], ["errors"], pytest.param(["python_driver"], marks=pytest.mark.full)],
+                         ids=lambda t: t[0])
 def test_cocotb(rtl, sim, tests):
     """Both cases on one build (n = 2, m = 1, nw = nv = 1, P = 1, binary32)."""
     run_tb(sim, rtl, TOP, TB, tests, tests[0])
