@@ -130,6 +130,8 @@ def _writes(core: CoreDescriptor) -> str:
     names = [f"{top}.v", f"{top}.vlt", f"{top}.json", *core.documents(params)]
     if core.smoke is not None:
         names.append(f"{top}_tb.v")
+        if f"{top}.rdl" in names:  # a core behind AXI4: its testbench replays a session (kfgen.gen.smoke)
+            names.append(f"{top}_vectors.hex")
     names += [f"{top}.xdc", f"{top}.sdc"]
     if f"{top}.rdl" in names:  # a register map is an AXI4 slave's: kfgen.gen.ipxact and pydriver write these
         names += [f"{top}.xml", f"{top}_ip.tcl", f"{top}_driver.py"]
@@ -162,7 +164,8 @@ def _build_parser(help_for: str | None = None) -> argparse.ArgumentParser:
                        "Writes DIR/TOP.v, DIR/TOP.vlt (Verilator waivers) and DIR/TOP.json (the manifest), the "
                        "core's documents (register map TOP.rdl, C header TOP.h, TOP.md, C driver TOP_driver.h and "
                        "TOP_driver.c, where it has them), and for vendor flows the FuseSoC core DIR/TOP.core, its "
-                       "smoke testbench DIR/TOP_tb.v, the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc "
+                       "self-checking testbench DIR/TOP_tb.v (with its vectors DIR/TOP_vectors.hex for a core with an AXI4 "
+                       "slave), the clock constraints DIR/TOP.xdc (Vivado) and DIR/TOP.sdc "
                        "(Quartus), and for a core with an AXI4 slave the IP-XACT component DIR/TOP.xml, its "
                        "Vivado block-design script DIR/TOP_ip.tcl and a Python driver DIR/TOP_driver.py (PYNQ); "
                        f"TOP is --name (at most {NAME_MAX} characters)."

@@ -28,7 +28,6 @@ from kfgen.hdl.ukf.steps import programs
 
 from .cdriver import id_fields, imm_driver, ukf_driver
 from .regdoc import documents, map_manifest
-from .smoke import id_register_reads
 
 __all__ = ["discover", "bind"]
 
@@ -53,11 +52,6 @@ def _smoke(module):
     def plan(params, manifest):
         return importlib.import_module(module).smoke_plan(params, manifest)
     return plan
-
-
-def _id_register_reads(params, manifest):
-    # The minimum for a core behind AXI4: its ID register reads back as the manifest says.
-    return id_register_reads(manifest)
 
 
 def _with_map(extra):
@@ -118,13 +112,13 @@ _HOOKS = {
     "castella": {"bench": "kfgen.gen.bench_castella", "smoke": _smoke("kfgen.sim.castella.smoke")},
     "fpu": {"bench": "kfgen.gen.bench_fpu", "smoke": _smoke("kfgen.sim.fpu.smoke")},
     "schur": {"bench": "kfgen.gen.bench_schur", "smoke": _smoke("kfgen.sim.schur.smoke")},
-    "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _id_register_reads,
+    "ukf": {"bench": "kfgen.gen.bench_ukf", "smoke": _smoke("kfgen.sim.ukf.smoke"),
             "documents": _ukf_documents, "extra": _with_map},
-    "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _id_register_reads,
+    "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _smoke("kfgen.sim.imm.smoke"),
             "documents": _map_documents(imm_map, _imm_driver), "extra": _with_map},
-    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _id_register_reads, "documents": _map_documents(kf_map),
+    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _smoke("kfgen.sim.kf.smoke"), "documents": _map_documents(kf_map),
            "extra": _with_map},
-    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _id_register_reads, "documents": _map_documents(ekf_map),
+    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _smoke("kfgen.sim.ekf.smoke"), "documents": _map_documents(ekf_map),
             "extra": _with_map},
 }
 

@@ -27,7 +27,7 @@ from .fusesoc import FlowOptions, constraints, core_file
 from .ipxact import files as ipxact_files
 from .manifest import dumps, manifest
 from .pydriver import files as pydriver_files
-from .smoke import testbench
+from .smoke import testbench, vectors, vectors_name
 from .verilog import declared_names, emit, header, waivers
 
 __all__ = ["generate", "write_files", "command", "check_name_fits", "check_output", "port_names",
@@ -99,8 +99,9 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
     """File name -> text of everything ``core`` produces for ``params``: the Verilog, its
     waivers, the manifest, the core's documents, the IP-XACT component ``TOP.xml`` and its Vivado
     script ``TOP_ip.tcl`` (:mod:`kfgen.gen.ipxact`, for a core with an AXI4 slave) and its Python
-    driver ``TOP_driver.py`` (:mod:`kfgen.gen.pydriver`, likewise), the smoke
-    testbench ``TOP_tb.v`` (where the core has one), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
+    driver ``TOP_driver.py`` (:mod:`kfgen.gen.pydriver`, likewise), the self-checking
+    testbench ``TOP_tb.v`` (where the core has one; :mod:`kfgen.gen.smoke`) and its vectors
+    ``TOP_vectors.hex`` (an engine core's), the constraints ``TOP.xdc`` and ``TOP.sdc`` and the FuseSoC core ``TOP.core``
     (:mod:`kfgen.gen.fusesoc`; ``flow``, a :class:`~kfgen.gen.fusesoc.FlowOptions`, sets the
     clock and parts, default 100 MHz).
 
@@ -135,7 +136,10 @@ def generate(core: CoreDescriptor, params, flow: FlowOptions | None = None) -> d
         **pydriver_files(top, described),
     }
     if core.smoke is not None:
-        files[f"{top}_tb.v"] = testbench(top, described, core.smoke(params, described), head)
+        plan = core.smoke(params, described)
+        files[f"{top}_tb.v"] = testbench(top, described, plan, head)
+        if plan["kind"] == "axi_script":
+            files[vectors_name(top)] = vectors(top, plan, head)
     flow = flow or FlowOptions()
     files.update(constraints(top, flow))
     # The Verilog does not depend on the flow options, so only TOP.core's command names them.

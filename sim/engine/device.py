@@ -41,6 +41,8 @@ class GoldenDevice:
         Every access: ``("r", offset, word)`` or ``("w", offset, word)``.
     steps : list of str
         The steps started, in order.
+    ran : list of list of str
+        For each start, the programs it ran in order (a prologue's first, as the core runs it).
     """
 
     def __init__(self, manifest, params_cls, programs):
@@ -59,6 +61,7 @@ class GoldenDevice:
         self.low = 0
         self.accesses = []
         self.steps = []
+        self.ran = []
 
     def _bit(self, reg: str, name: str) -> dict:
         return next(f for f in self.regs[reg]["fields"] if f["name"] == name)
@@ -126,7 +129,8 @@ class GoldenDevice:
         else:
             step = next(iter(self.programs.steps))
         self.steps.append(step)
-        st = self.prologue.run(step, self.mem)
+        self.ran.append(self.prologue.steps(step))
+        st = self.prologue.run(step, self.mem, self.ran[-1])
         for name, on in (("done", True), ("err_pivot", st.pivot), ("err_nan", st.nan)):
             if on:
                 self.status |= 1 << self._bit("STATUS", name)["lsb"]
