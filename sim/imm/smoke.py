@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from kfgen.hdl.imm.params import ImmParams
 from kfgen.hdl.imm.steps import programs
 from kfgen.sim.engine.script import Script
 
@@ -16,7 +15,7 @@ from .scenario import SEED, satlink
 __all__ = ["ITERATIONS", "smoke_plan"]
 
 #: Filter iterations the testbench runs.
-ITERATIONS = 3
+ITERATIONS = 2
 
 
 def _generic(params, rng) -> tuple[dict, np.ndarray]:
@@ -52,7 +51,7 @@ def smoke_plan(params, manifest: dict) -> dict:
     else:
         values, zs = _generic(params, np.random.default_rng(1))
         about = f"{params.R} models of a chain of integrators"
-    s = Script(manifest, ImmParams, programs)
+    s = Script(manifest, params, programs)
     s.begin()
     for name in s.mems:
         if name in values:

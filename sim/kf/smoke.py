@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from kfgen.hdl.kf.params import KfParams
 from kfgen.hdl.kf.steps import programs
 from kfgen.sim.engine.script import Script
 
 __all__ = ["ITERATIONS", "smoke_plan"]
 
 #: Filter iterations the testbench runs.
-ITERATIONS = 3
+ITERATIONS = 2
 
 
 def _riccati_gain(F, H, Q, R, rounds: int = 500) -> np.ndarray:
@@ -52,7 +51,7 @@ def system(params, rng) -> dict:
 def smoke_plan(params, manifest: dict) -> dict:
     """Load the model, then ``ITERATIONS`` iterations (z, u where the core has one, start),
     x and P (where the core keeps P) read after each."""
-    s = Script(manifest, KfParams, programs)
+    s = Script(manifest, params, programs)
     rng = np.random.default_rng(1)
     values = system(params, rng)
     s.begin()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kfgen.hdl.ukf.params import UkfParams, covariance_region
+from kfgen.hdl.ukf.params import covariance_region
 from kfgen.hdl.ukf.steps import programs
 from kfgen.sim.engine.script import Script
 
@@ -21,7 +21,7 @@ from .software import complete, initial_words, iteration
 __all__ = ["ITERATIONS", "SEED", "smoke_plan"]
 
 #: Filter iterations the testbench runs.
-ITERATIONS = 3
+ITERATIONS = 2
 #: The scenario's seed.
 SEED = 1
 
@@ -91,7 +91,7 @@ def smoke_plan(params, manifest: dict) -> dict:
     """x0, P0 (or its Cholesky factor), Q, R, then ``ITERATIONS`` iterations of the
     application's scenario as software runs them, x and the covariance read after each."""
     app = _application(params)
-    s = Script(manifest, UkfParams, programs)
+    s = Script(manifest, params, programs)
     s.begin()
     for name, words in initial_words(app, s.fmt, params.form).items():
         s.put_words(name, words)

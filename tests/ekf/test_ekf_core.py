@@ -13,10 +13,12 @@ from kfgen.hdl.ekf.params import EkfParams
 from kfgen.hdl.ekf.steps import schedules
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import chain_bound
+from kfgen.sim.ekf.smoke import ITERATIONS
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.toolchain import lint
 
-from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
+from helpers import (ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign,
+                     testbench_passes)
 
 TB = "kfgen.sim.ekf.tb"
 TOP = "ekf_small"
@@ -59,7 +61,8 @@ def rtl(build_root):
 def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}*"))
     assert names == sorted([f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
-                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v", f"{TOP}_driver.py"])
+                                                       "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v", f"{TOP}_vectors.hex",
+                                                                   f"{TOP}_driver.py"])
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = EkfParams(**man["parameters"])
     assert params.sizes == (4, 2, 2, 2, 0) and params.pes == 2 and params.app == "tracker:Tracker"
@@ -75,6 +78,18 @@ def test_files_and_manifest(rtl):
     assert "#define" in (rtl / f"{TOP}.h").read_text()
     rc, messages = lint(rtl / f"{TOP}.v")
     assert rc == 0 and not messages, "\n".join(messages)
+
+
+@pytest.mark.xdist_group("ekf_core")
+@pytest.mark.full  # (make test runs the testbench on the small UKF cores: kfgen.gen.smoke is one for all)
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_shipped_testbench(rtl, tmp_path, simulator):
+    """The shipped TOP_tb.v replays TOP_vectors.hex on the core (the tracker's scenario): PASS,
+    and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
+    out = testbench_passes(rtl, TOP, simulator, tmp_path)
+    cycles = json.loads((rtl / f"{TOP}.json").read_text())["cycles"]["iterate"]
+    assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
+                                                                        for k in range(ITERATIONS)]
 
 
 @pytest.mark.parametrize("args,says", [

@@ -4,6 +4,7 @@ with every word against the golden model and the cycles against the manifest, an
 measurement, and the bus and fault cases."""
 
 import json
+import re
 
 import pytest
 
@@ -14,8 +15,10 @@ from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.toolchain import lint
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.imm.run import TB
+from kfgen.sim.imm.smoke import ITERATIONS
 
-from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
+from helpers import (ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign,
+                     testbench_passes)
 
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]
 
@@ -52,6 +55,18 @@ def test_files_and_manifest(rtl):
 def test_lint(rtl):
     rc, messages = lint(rtl / "imm_small.v")
     assert rc == 0 and not messages, "\n".join(messages)
+
+
+@pytest.mark.xdist_group("imm_core")
+@pytest.mark.full  # (make test runs the testbench on the small UKF cores: kfgen.gen.smoke is one for all)
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_shipped_testbench(rtl, tmp_path, simulator):
+    """The shipped TOP_tb.v replays TOP_vectors.hex on the core (R = 3, n = 2, d = 2): PASS,
+    and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
+    out = testbench_passes(rtl, "imm_small", simulator, tmp_path)
+    cycles = json.loads((rtl / "imm_small.json").read_text())["cycles"]["iterate"]
+    assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
+                                                                        for k in range(ITERATIONS)]
 
 
 @pytest.mark.parametrize("args,says", [

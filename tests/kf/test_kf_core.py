@@ -5,6 +5,7 @@ and the cycles against the manifest, the bus and fault cases, the stream ports; 
 steady-gain core and larger ones in ``make test-full``."""
 
 import json
+import re
 
 import pytest
 
@@ -13,10 +14,11 @@ from kfgen.hdl.kf.steps import schedules
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.linalg.schedule import chain_bound
 from kfgen.sim.engine.run import build_core, run_tb
+from kfgen.sim.kf.smoke import ITERATIONS
 from kfgen.sim.kf.tb import TB_MODULE as TB
 from kfgen.sim.toolchain import lint
 
-from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, run_fault_campaign
+from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, run_fault_campaign, testbench_passes
 
 SMALL = ["--states", "4", "--measurements", "2", "--inputs", "1", "--pes", "2", "--streams"]
 
@@ -54,6 +56,18 @@ def test_files_and_manifest(rtl):
 def test_lint(rtl):
     rc, messages = lint(rtl / "kf_small.v")
     assert rc == 0 and not messages, "\n".join(messages)
+
+
+@pytest.mark.xdist_group("kf_core")
+@pytest.mark.full  # (make test runs the testbench on the small UKF cores: kfgen.gen.smoke is one for all)
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_shipped_testbench(rtl, tmp_path, simulator):
+    """The shipped TOP_tb.v replays TOP_vectors.hex on the core (n = 4, m = 2, nu = 1): PASS,
+    and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
+    out = testbench_passes(rtl, "kf_small", simulator, tmp_path)
+    cycles = json.loads((rtl / "kf_small.json").read_text())["cycles"]["iterate"]
+    assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
+                                                                        for k in range(ITERATIONS)]
 
 
 @pytest.fixture(scope="module")

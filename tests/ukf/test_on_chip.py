@@ -7,6 +7,7 @@ model word for word, the iteration's cycles against the manifest; the command li
 refusals; the regenerate command."""
 
 import json
+import re
 import sys
 
 import numpy as np
@@ -21,8 +22,9 @@ from kfgen.sim.ukf.app import checked_scenario
 from kfgen.sim.ukf.apps.nanosat import Nanosat, attitude_error_deg
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.ukf.run import TB
+from kfgen.sim.ukf.smoke import ITERATIONS
 
-from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process
+from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process, testbench_passes
 
 NANOSAT = "nanosat:Nanosat"
 TRACKER = "tracker:Tracker"
@@ -275,6 +277,30 @@ def test_streams_rtl(streams_core):
     with np.load(npz) as d:
         assert list(d["cycles_columns"]) == ["iteration", "transfer"]
         assert np.array_equal(d["estimates"], run_golden(app, checked_scenario(app, 3, 2), on_chip=spec))
+
+
+def _shipped_testbench(directory, top, simulator, work):
+    """The shipped TOP_tb.v on an on-chip core: PASS, one start an iteration, the first
+    running the noise program too (Q and R were loaded), each the manifest's cycles."""
+    out = testbench_passes(directory, top, simulator, work)
+    cycles = json.loads((directory / f"{top}.json").read_text())["cycles"]
+    want = [cycles["noise"] + cycles["iteration"]] + [cycles["iteration"]] * (ITERATIONS - 1)
+    assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(c)) for k, c in enumerate(want)]
+    assert len(re.findall(r"^op \d+, start ", out, re.M)) == ITERATIONS
+
+
+@pytest.mark.xdist_group("ukf_streams")
+def test_streams_core_shipped_testbench(streams_core, tmp_path):
+    """Icarus runs the small on-chip core's TOP_tb.v over AXI4 (its stream ports idle)."""
+    _shipped_testbench(streams_core, "ukf_st", "icarus", tmp_path)
+
+
+@pytest.mark.full
+@pytest.mark.xdist_group("ukf_on_chip")
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_shipped_testbench(generated, tmp_path, simulator):
+    """The nanosatellite's on-chip core: its TOP_tb.v in Icarus and Verilator."""
+    _shipped_testbench(generated, "ukf_oc", simulator, tmp_path)
 
 
 @pytest.mark.full

@@ -4,17 +4,20 @@ every word against the golden model and the cycles against the manifest, and the
 fault cases."""
 
 import json
+import re
 
 import pytest
 
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import schedules
-from kfgen.sim.toolchain import lint
+from kfgen.sim.toolchain import lint, run_testbench_icarus, run_testbench_verilator
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.ukf.run import TB
+from kfgen.sim.ukf.smoke import ITERATIONS
 
-from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign
+from helpers import (ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, planted_bug, run_fault_campaign,
+                     testbench_passes)
 
 TOP = "ukf_small"
 SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
@@ -50,6 +53,29 @@ def test_lint(rtl):
     assert rc == 0 and not messages, "\n".join(messages)
 
 
+@pytest.mark.xdist_group("ukf_core")
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_shipped_testbench(rtl, tmp_path, simulator):
+    """The shipped TOP_tb.v replays TOP_vectors.hex (the three steps, f and h's words from the
+    software's session) on the core: PASS, each iteration's cycles the manifest's; and it
+    fails, naming the operation, on vectors with one word planted wrong: the estimate's last
+    word, or the cycles of the first start."""
+    out = testbench_passes(rtl, TOP, simulator, tmp_path)
+    cycles = json.loads((rtl / f"{TOP}.json").read_text())["cycles"]
+    total = cycles["sig_gen"] + cycles["predict"] + cycles["update"]
+    assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(total))
+                                                                        for k in range(ITERATIONS)]
+    run = {"icarus": run_testbench_icarus, "verilator": run_testbench_verilator}[simulator]
+    for bug, says in (("read", r"FAIL: ukf_small: op (\d+): read at "), ("start", r"FAIL: ukf_small: start ")):
+        bad = tmp_path / f"{bug}.hex"
+        line = planted_bug(rtl / f"{TOP}_vectors.hex", bad, bug)
+        proc = run(rtl, TOP, tmp_path, bad, build=False)
+        assert proc.returncode != 0 and re.search(says, proc.stdout), (line, proc.stdout[-2000:])
+        assert "PASS" not in proc.stdout
+        if bug == "read":
+            assert f"// {re.search(says, proc.stdout).group(1)}: " in line, "the failing operation is the planted one"
+
+
 @pytest.mark.parametrize("how", ["option", "config"])
 def test_no_irq(tmp_path, how):
     if how == "option":
@@ -62,6 +88,11 @@ def test_no_irq(tmp_path, how):
     assert "irq" not in {p["name"] for p in man["ports"]}
     assert "IRQ_ENABLE" not in {r["name"] for r in man["registers"]}
     assert "--no-irq" in (tmp_path / "ukf_quiet.v").read_text().split("\n\n")[0]
+    if how == "option":  # the shipped testbench polls STATUS instead of waiting for irq
+        out = testbench_passes(tmp_path, "ukf_quiet", "icarus", tmp_path / "icarus")
+        text = (tmp_path / "ukf_quiet_tb.v").read_text()
+        assert "irq_rise" not in text and "axi_read(STATUS)" in text
+        assert len(re.findall(r"^op \d+, start ", out, re.M)) == 3 * ITERATIONS
 
 
 @pytest.mark.parametrize("args,says", [
