@@ -176,7 +176,7 @@ class GoldenRun:
         return self.prologue.run(step, self.mem)
 
 
-def testbench_passes(directory, top, simulator, work, vectors=None, build=True):
+def run_shipped_testbench(directory, top, simulator, work, vectors=None, build=True):
     """Run the core's self-checking ``TOP_tb.v`` (``simulator``: ``"icarus"`` or
     ``"verilator"``, :mod:`kfgen.sim.toolchain`) and hold it to PASS: exit status 0, its
     ``PASS: TOP: `` line and no FAIL. The testbench's output."""

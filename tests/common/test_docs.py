@@ -78,6 +78,12 @@ ELSEWHERE = {
         "tests/common/test_fusesoc.py::test_synth_target",
     "kfgen fusesoc --cores-root cores run --setup --target vivado kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_vivado_setup_writes_the_project",
+    "kfgen ukf --states 2 --observations 1 --process-noise 1 --measurement-noise 1 --pes 1 --format binary32 --w0 0.25 "
+    "--name ukf_small -o out/ukf_small": "tests/ukf/test_ukf_core.py::test_documented_testbench_commands",
+    "cd out/ukf_small": "tests/ukf/test_ukf_core.py::test_documented_testbench_commands",
+    "iverilog -g2005 -o ukf_small_tb.vvp ukf_small_tb.v ukf_small.v":
+        "tests/ukf/test_ukf_core.py::test_documented_testbench_commands",
+    "vvp -n ukf_small_tb.vvp": "tests/ukf/test_ukf_core.py::test_documented_testbench_commands",
     ".venv/bin/dask scheduler --port 8786 &": "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",
     ".venv/bin/dask worker tcp://127.0.0.1:8786 --nworkers 1 --nthreads 1 &":
         "tests/common/test_cluster.py::test_scheduler_commands_in_the_docs",

@@ -39,7 +39,7 @@ def page(tmp_path_factory):
     blocks = _blocks()
     assert [(top, name) for top, name, _ in blocks] == [
         ("hdl", "params"), ("hdl", "programs"), ("hdl", "steps"), ("hdl", "regmap"), ("hdl", "core"),
-        ("hdl", "descriptor"), ("sim", "golden"), ("sim", "tb")]
+        ("hdl", "descriptor"), ("sim", "golden"), ("sim", "tb"), ("sim", "smoke")]
     root = tmp_path_factory.mktemp("doc")
     for package in PACKAGES.values():
         (root / package).mkdir()
@@ -98,9 +98,30 @@ def test_the_page_golden_model_matches_numpy(page):
 
 
 def _hook_line() -> str:
-    """The page's line for ``_HOOKS`` in gen/cores.py."""
+    """The page's line for ``_HOOKS`` in gen/cores.py (the page's packages by their written names)."""
     (line,) = re.findall(r'^"propagate": \{.*\},$', PAGE.read_text(), re.M)
+    for page_name, written in PACKAGES.items():
+        line = line.replace(page_name, written)
     return line
+
+
+def _bound(page, monkeypatch):
+    """The page's descriptor with its ``_HOOKS`` line bound."""
+    hooks = eval("{" + _hook_line() + "}", {**vars(cores), "propagate_map": page["regmap"].propagate_map})
+    monkeypatch.setitem(cores._HOOKS, "propagate", hooks["propagate"])
+    monkeypatch.setattr(cores, "_BOUND", {})
+    return page["descriptor"].CORE
+
+
+def test_the_page_core_ships_its_testbench(page, monkeypatch):
+    """With its hooks, the core writes TOP_tb.v and the vectors of the page's session: two
+    starts at the manifest's cycles, every read of x and P the golden model's."""
+    files = generate(_bound(page, monkeypatch), page["params"].PropagateParams(states=3, pes=2))
+    cycles = re.search(r'"predict": (\d+)', files["propagate.json"]).group(1)
+    ops = [line.split() for line in files["propagate_vectors.hex"].splitlines() if not line.startswith("//")]
+    assert [op[3] for op in ops if op[0] == "3"] == [f"{int(cycles):08x}"] * 2
+    assert sum(op[0] == "2" for op in ops) == 2 + 1 + 2 * (2 + 3 + 9)  # ID, IRQ_ENABLE; STATUS x2, x, P
+    assert "module propagate_tb;" in files["propagate_tb.v"]
 
 
 @pytest.mark.full  # a Verilator build of its own; make test generates the core and runs its golden model
@@ -108,10 +129,7 @@ def _hook_line() -> str:
 def test_the_page_testbench_passes(page, tmp_path, monkeypatch):
     """The page's ``_HOOKS`` line bound, the core generated, built on Verilator and its
     testbench run."""
-    hooks = eval("{" + _hook_line() + "}", {**vars(cores), "propagate_map": page["regmap"].propagate_map})
-    monkeypatch.setitem(cores._HOOKS, "propagate", hooks["propagate"])
-    monkeypatch.setattr(cores, "_BOUND", {})
     params = page["params"].PropagateParams(states=3, pes=2)
-    write_files(tmp_path, generate(page["descriptor"].CORE, params))
+    write_files(tmp_path, generate(_bound(page, monkeypatch), params))
     model = build_core(tmp_path, "propagate", VERILATOR_CACHE)
     run_tb(model, tmp_path, "propagate", page["tb"].__name__, ["steps"], "steps")

@@ -18,7 +18,7 @@ from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.toolchain import lint
 
 from helpers import (ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign,
-                     testbench_passes)
+                     run_shipped_testbench)
 
 TB = "kfgen.sim.ekf.tb"
 TOP = "ekf_small"
@@ -86,7 +86,7 @@ def test_files_and_manifest(rtl):
 def test_shipped_testbench(rtl, tmp_path, simulator):
     """The shipped TOP_tb.v replays TOP_vectors.hex on the core (the tracker's scenario): PASS,
     and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
-    out = testbench_passes(rtl, TOP, simulator, tmp_path)
+    out = run_shipped_testbench(rtl, TOP, simulator, tmp_path)
     cycles = json.loads((rtl / f"{TOP}.json").read_text())["cycles"]["iterate"]
     assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
                                                                         for k in range(ITERATIONS)]

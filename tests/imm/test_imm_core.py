@@ -18,7 +18,7 @@ from kfgen.sim.imm.run import TB
 from kfgen.sim.imm.smoke import ITERATIONS
 
 from helpers import (ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, kfgen_in_process, run_fault_campaign,
-                     testbench_passes)
+                     run_shipped_testbench)
 
 SMALL = ["--models", "3", "--states", "2", "--measurements", "2", "--pes", "2"]
 
@@ -63,7 +63,7 @@ def test_lint(rtl):
 def test_shipped_testbench(rtl, tmp_path, simulator):
     """The shipped TOP_tb.v replays TOP_vectors.hex on the core (R = 3, n = 2, d = 2): PASS,
     and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
-    out = testbench_passes(rtl, "imm_small", simulator, tmp_path)
+    out = run_shipped_testbench(rtl, "imm_small", simulator, tmp_path)
     cycles = json.loads((rtl / "imm_small.json").read_text())["cycles"]["iterate"]
     assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
                                                                         for k in range(ITERATIONS)]

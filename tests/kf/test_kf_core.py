@@ -18,7 +18,7 @@ from kfgen.sim.kf.smoke import ITERATIONS
 from kfgen.sim.kf.tb import TB_MODULE as TB
 from kfgen.sim.toolchain import lint
 
-from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, run_fault_campaign, testbench_passes
+from helpers import ENGINE_CAMPAIGN, VERILATOR_CACHE, kfgen, run_fault_campaign, run_shipped_testbench
 
 SMALL = ["--states", "4", "--measurements", "2", "--inputs", "1", "--pes", "2", "--streams"]
 
@@ -64,7 +64,7 @@ def test_lint(rtl):
 def test_shipped_testbench(rtl, tmp_path, simulator):
     """The shipped TOP_tb.v replays TOP_vectors.hex on the core (n = 4, m = 2, nu = 1): PASS,
     and each iteration's cycles printed as the manifest's (the testbench checks every start's)."""
-    out = testbench_passes(rtl, "kf_small", simulator, tmp_path)
+    out = run_shipped_testbench(rtl, "kf_small", simulator, tmp_path)
     cycles = json.loads((rtl / "kf_small.json").read_text())["cycles"]["iterate"]
     assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(cycles))
                                                                         for k in range(ITERATIONS)]

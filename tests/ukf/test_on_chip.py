@@ -24,7 +24,7 @@ from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.ukf.run import TB
 from kfgen.sim.ukf.smoke import ITERATIONS
 
-from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process, testbench_passes
+from helpers import VERILATOR_CACHE, kfgen, kfgen_in_process, run_shipped_testbench
 
 NANOSAT = "nanosat:Nanosat"
 TRACKER = "tracker:Tracker"
@@ -282,7 +282,7 @@ def test_streams_rtl(streams_core):
 def _shipped_testbench(directory, top, simulator, work):
     """The shipped TOP_tb.v on an on-chip core: PASS, one start an iteration, the first
     running the noise program too (Q and R were loaded), each the manifest's cycles."""
-    out = testbench_passes(directory, top, simulator, work)
+    out = run_shipped_testbench(directory, top, simulator, work)
     cycles = json.loads((directory / f"{top}.json").read_text())["cycles"]
     want = [cycles["noise"] + cycles["iteration"]] + [cycles["iteration"]] * (ITERATIONS - 1)
     assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(c)) for k, c in enumerate(want)]
