@@ -3,4 +3,5 @@
 of the core's prologue (:mod:`.prologue`), the bounded waits (:mod:`.watchdog`) and the fault
 campaigns on the bus (:mod:`.campaign`), the generated C driver's hooks (:mod:`.mmio`), and for
 the generated Python driver a golden MMIO device (:mod:`.device`) and its run on the Verilated
-core (:mod:`.driver_tb`)."""
+core (:mod:`.driver_tb`); a session on that device recorded as the script the shipped Verilog
+testbench replays (:mod:`.script`)."""
