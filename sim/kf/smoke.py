@@ -70,4 +70,5 @@ def smoke_plan(params, manifest: dict) -> dict:
             if name in s.mems:
                 s.get(name)
         s.end_iteration(it)
-    return s.plan(f"{ITERATIONS} iterations of a chain of integrators, x and P against the golden model")
+    read = "x and P" if "P" in s.mems else "x (a steady-gain core keeps no P)"
+    return s.plan(f"{ITERATIONS} iterations of a chain of integrators, {read} against the golden model")
