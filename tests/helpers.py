@@ -176,14 +176,21 @@ class GoldenRun:
         return self.prologue.run(step, self.mem)
 
 
-def run_shipped_testbench(directory, top, simulator, work, vectors=None, build=True):
-    """Run the core's self-checking ``TOP_tb.v`` (``simulator``: ``"icarus"`` or
-    ``"verilator"``, :mod:`kfgen.sim.toolchain`) and hold it to PASS: exit status 0, its
-    ``PASS: TOP: `` line and no FAIL. The testbench's output."""
+def shipped_testbench_runner(simulator):
+    """``run(directory, top, work, vectors=None, build=True)`` of the core's ``TOP_tb.v`` in
+    ``simulator`` (``"icarus"``, or ``"verilator"``: its build cached in :data:`VERILATOR_CACHE`)."""
+    from functools import partial
+
     from kfgen.sim.toolchain import run_testbench_icarus, run_testbench_verilator
 
-    run = {"icarus": run_testbench_icarus, "verilator": run_testbench_verilator}[simulator]
-    proc = run(directory, top, work, vectors, build=build)
+    return {"icarus": run_testbench_icarus,
+            "verilator": partial(run_testbench_verilator, cache=VERILATOR_CACHE)}[simulator]
+
+
+def run_shipped_testbench(directory, top, simulator, work, vectors=None, build=True):
+    """Run the core's self-checking ``TOP_tb.v`` (:func:`shipped_testbench_runner`) and hold it to
+    PASS: exit status 0, its ``PASS: TOP: `` line and no FAIL. The testbench's output."""
+    proc = shipped_testbench_runner(simulator)(directory, top, work, vectors, build=build)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0 and f"\nPASS: {top}: " in "\n" + proc.stdout and "FAIL" not in out, out[-3000:]
     return proc.stdout

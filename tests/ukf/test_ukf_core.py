@@ -13,13 +13,13 @@ import pytest
 from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import schedules
-from kfgen.sim.toolchain import lint, run_testbench_icarus, run_testbench_verilator
+from kfgen.sim.toolchain import lint
 from kfgen.sim.engine.run import build_core, run_tb
 from kfgen.sim.ukf.run import TB
 from kfgen.sim.ukf.smoke import ITERATIONS
 
 from helpers import (ENGINE_CAMPAIGN, ROOT, VERILATOR_CACHE, kfgen, kfgen_in_process, planted_bug,
-                     run_fault_campaign, run_shipped_testbench)
+                     run_fault_campaign, run_shipped_testbench, shipped_testbench_runner)
 
 TOP = "ukf_small"
 SMALL = ["--states", "2", "--observations", "1", "--process-noise", "1", "--measurement-noise", "1",
@@ -67,7 +67,7 @@ def test_shipped_testbench(rtl, tmp_path, simulator):
     total = cycles["sig_gen"] + cycles["predict"] + cycles["update"]
     assert re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M) == [(str(k), str(total))
                                                                         for k in range(ITERATIONS)]
-    run = {"icarus": run_testbench_icarus, "verilator": run_testbench_verilator}[simulator]
+    run = shipped_testbench_runner(simulator)
     for bug, says in (("read", r"FAIL: ukf_small: op (\d+): read at "), ("start", r"FAIL: ukf_small: start ")):
         bad = tmp_path / f"{bug}.hex"
         line = planted_bug(rtl / f"{TOP}_vectors.hex", bad, bug)
