@@ -78,10 +78,6 @@ def test_the_page_core_imports_only_the_shared_layers():
                     f"{top}/propagate/{name}.py imports {module}"
 
 
-def test_the_page_core_generates(page):
-    params = page["params"].PropagateParams(states=3, pes=2)
-    files = generate(page["descriptor"].CORE, params)
-    assert "module propagate(" in files["propagate.v"] and '"predict"' in files["propagate.json"]
 
 
 def test_the_page_golden_model_matches_numpy(page):
@@ -113,10 +109,11 @@ def _bound(page, monkeypatch):
     return page["descriptor"].CORE
 
 
-def test_the_page_core_ships_its_testbench(page, monkeypatch):
-    """With its hooks, the core writes TOP_tb.v and the vectors of the page's session: two
-    starts at the manifest's cycles, every read of x and P the golden model's."""
+def test_the_page_core_generates(page, monkeypatch):
+    """With the page's hooks, the core generates, and writes TOP_tb.v and the vectors of the
+    page's session: two starts at the manifest's cycles, the reads of x and P."""
     files = generate(_bound(page, monkeypatch), page["params"].PropagateParams(states=3, pes=2))
+    assert "module propagate(" in files["propagate.v"] and '"predict"' in files["propagate.json"]
     cycles = re.search(r'"predict": (\d+)', files["propagate.json"]).group(1)
     ops = [line.split() for line in files["propagate_vectors.hex"].splitlines() if not line.startswith("//")]
     assert [op[3] for op in ops if op[0] == "3"] == [f"{int(cycles):08x}"] * 2
