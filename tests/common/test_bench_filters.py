@@ -17,7 +17,7 @@ from helpers import ROOT
 
 
 def test_linear_application_every_filter_is_the_kalman_filter():
-    out = accuracy_block("cv", 0, 2, 30)
+    out = accuracy_block("cv", 0, 2, 15)
     kf = np.array(out["kf_f64"])
     assert np.all(np.isfinite(kf)) and np.all(kf > 0)
     for filt in filters_of("cv"):
@@ -30,7 +30,7 @@ def test_linear_application_every_filter_is_the_kalman_filter():
 
 
 def test_tracker_cores_are_their_float64_filters():
-    out = accuracy_block("tracker", 3, 1, 30)
+    out = accuracy_block("tracker", 3, 1, 15)
     for filt in filters_of("tracker"):
         assert out[f"{filt}_faults"] == 0
         assert np.allclose(out[f"{filt}_b32"], out[f"{filt}_f64"], rtol=1e-4, atol=0), filt
