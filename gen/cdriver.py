@@ -584,7 +584,7 @@ _KF = CorePart(
     r"""/* The initial state x (n) and covariance P (n x n) and the model: F (n x n), B (n x nu; ignored,
  * and may be NULL, without control inputs), Q (n x n), H (m x n), R (m x m); row-major, both
  * triangles of P, Q and R (the core reads the lower ones). Any region may be written again
- * between iterations with TOP_write (TOP.h's offsets). */
+ * between iterations with @TOP@_write (@TOP@.h's offsets). */
 void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *F, const double *B,
                 const double *Q, const double *H, const double *R);
 """ + _ITERATE_API + _ESTIMATE_API,
