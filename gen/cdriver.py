@@ -1,5 +1,6 @@
 """The C drivers of the engine's cores, written beside a core as ``TOP_driver.h`` and
-``TOP_driver.c``: the UKF's (:func:`ukf_driver`) and the IMM's (:func:`imm_driver`).
+``TOP_driver.c``: the UKF's (:func:`ukf_driver`), the IMM's (:func:`imm_driver`), the linear
+Kalman filter's (:func:`kf_driver`) and the EKF's (:func:`ekf_driver`).
 
 C99 over the generated header ``TOP.h`` (:mod:`kfgen.gen.regdoc`). One half is the engine's,
 written once here for every core: initialise and check the ID (the register map's ID fields),
@@ -9,7 +10,9 @@ macros: volatile loads and stores by default (a bare-metal processor), or, with
 ``-DKFGEN_MMIO_HOOKS``, function pointers set at run time (the co-simulations,
 :mod:`kfgen.sim.ukf.cosim` and :mod:`kfgen.sim.imm.cosim`, call back into the cocotb AXI master
 through them). The other half is the core's (:class:`CorePart`): its sizes, loading its
-buffer, an iteration, reading the estimate.
+buffer, an iteration, reading the estimate; the pieces every core's half repeats (copies of
+regions, :func:`_copies`; an iteration of one start on z and u, :func:`_iterate`) are written
+once here too.
 
 The text is kept here, not in ``.c`` files, so that the wheel holds only Python; ``@TOP@``
 is the core's name and ``@T@`` its upper-case macro prefix.
@@ -19,7 +22,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["FORMATS", "CorePart", "driver", "id_fields", "ukf_driver", "imm_driver", "UKF_ID"]
+__all__ = ["FORMATS", "CorePart", "driver", "id_fields", "ukf_driver", "imm_driver", "kf_driver", "ekf_driver",
+           "UKF_ID"]
 
 #: The engine's half of ``TOP_driver.h``; ``@KIND@``, ``@SIZES@``, ``@TYPES@``, ``@API@`` and
 #: ``@RUN_ARGS@`` are the core's (:class:`CorePart`).
@@ -314,6 +318,32 @@ def driver(top: str, fmt: str, core: CorePart) -> dict[str, str]:
     return {f"{top}_driver.h": fill(header), f"{top}_driver.c": fill(source)}
 
 
+def _copies(fn: str, rows, optional: bool = False) -> str:
+    """C lines of ``TOP_fn`` (``write`` or ``read``) of whole regions: ``rows`` holds (argument,
+    region, element count); ``optional``: each copy skipped when its pointer is NULL."""
+    out = []
+    for arg, region, count in rows:
+        call = f"@TOP@_{fn}(dev, @T@__{region.upper()}_OFFSET, {arg}, {count});"
+        out.append(f"    if ({arg})\n        {call}\n" if optional else f"    {call}\n")
+    return "".join(out)
+
+
+def _iterate(run_args: str) -> str:
+    """``TOP_iterate(dev, u, z)`` of a core that runs a whole iteration from one start: the
+    control input u where the map has region u (else ignored, may be NULL), the measurement z
+    (``@T@_M`` values), then ``TOP_run(dev{run_args})``."""
+    return (f"int @TOP@_iterate(@TOP@_dev_t *dev, const double *u, const double *z)\n{{\n"
+            f"#ifdef @T@__U_OFFSET\n    @TOP@_write(dev, @T@__U_OFFSET, u, @T@__U_ROWS);\n#else\n    (void)u;\n#endif\n"
+            f"{_copies('write', [('z', 'z', '@T@_M')])}    return @TOP@_run(dev{run_args});\n}}\n")
+
+
+#: The declaration of :func:`_iterate`'s function.
+_ITERATE_API = r"""/* One iteration from one start: u is the control input (nu values; ignored, and may be NULL,
+ * when the core has none), z the measurement (m values). 0, or the STATUS error bits. */
+int @TOP@_iterate(@TOP@_dev_t *dev, const double *u, const double *z);
+"""
+
+
 # ---------------------------------------------------------------------------- the UKF
 
 #: The UKF's ID fields in the order its driver has always checked them (the map's, but
@@ -403,17 +433,7 @@ int @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double 
 }
 
 #ifdef @T@__CTRL__STEP__ITERATION
-int @TOP@_iterate(@TOP@_dev_t *dev, const double *u, const double *z)
-{
-#ifdef @T@__U_OFFSET
-    @TOP@_write(dev, @T@__U_OFFSET, u, @T@__U_ROWS);
-#else
-    (void)u;
-#endif
-    @TOP@_write(dev, @T@__Z_OFFSET, z, @T@_M);
-    return @TOP@_run(dev, @T@__CTRL__STEP__ITERATION);
-}
-#else
+""" + _iterate(", @T@__CTRL__STEP__ITERATION") + r"""#else
 int @TOP@_iterate(@TOP@_dev_t *dev, @TOP@_f_t f, @TOP@_h_t h, void *ctx, const double *z)
 {
     static double chi[@T@_POINTS * @T@_MA];
@@ -496,43 +516,28 @@ void @TOP@_estimate(@TOP@_dev_t *dev, double *mu, double *x, double *P);
 void @TOP@_models(@TOP@_dev_t *dev, double *x_model, double *P_model);
 """
 
-_IMM_SOURCE = r"""void @TOP@_load(@TOP@_dev_t *dev, const double *pi, const double *mu, const double *F, const double *Q,
+_IMM_SOURCE = (r"""void @TOP@_load(@TOP@_dev_t *dev, const double *pi, const double *mu, const double *F, const double *Q,
                 const double *H, const double *R, const double *x_model, const double *P_model)
 {
-    @TOP@_write(dev, @T@__PI_OFFSET, pi, @T@_MODELS * @T@_MODELS);
-    @TOP@_write(dev, @T@__MU_OFFSET, mu, @T@_MODELS);
-    @TOP@_write(dev, @T@__F_OFFSET, F, @T@_MODELS * @T@_N * @T@_N);
-    @TOP@_write(dev, @T@__Q_OFFSET, Q, @T@_MODELS * @T@_N * @T@_N);
-    @TOP@_write(dev, @T@__H_OFFSET, H, @T@_MODELS * @T@_D * @T@_N);
-    @TOP@_write(dev, @T@__R_OFFSET, R, @T@_MODELS * @T@_D * @T@_D);
-    @TOP@_write(dev, @T@__X_MODEL_OFFSET, x_model, @T@_MODELS * @T@_N);
-    @TOP@_write(dev, @T@__P_MODEL_OFFSET, P_model, @T@_MODELS * @T@_N * @T@_N);
-}
+""" + _copies("write", [("pi", "pi", "@T@_MODELS * @T@_MODELS"), ("mu", "mu", "@T@_MODELS"),
+                        ("F", "F", "@T@_MODELS * @T@_N * @T@_N"), ("Q", "Q", "@T@_MODELS * @T@_N * @T@_N"),
+                        ("H", "H", "@T@_MODELS * @T@_D * @T@_N"), ("R", "R", "@T@_MODELS * @T@_D * @T@_D"),
+                        ("x_model", "x_model", "@T@_MODELS * @T@_N"),
+                        ("P_model", "P_model", "@T@_MODELS * @T@_N * @T@_N")]) + r"""}
 
 int @TOP@_step(@TOP@_dev_t *dev, const double *z)
 {
-    @TOP@_write(dev, @T@__Z_OFFSET, z, @T@_D);
-    return @TOP@_run(dev);
+""" + _copies("write", [("z", "z", "@T@_D")]) + r"""    return @TOP@_run(dev);
 }
 
 void @TOP@_estimate(@TOP@_dev_t *dev, double *mu, double *x, double *P)
 {
-    if (mu)
-        @TOP@_read(dev, @T@__MU_OFFSET, mu, @T@_MODELS);
-    if (x)
-        @TOP@_read(dev, @T@__X_OFFSET, x, @T@_N);
-    if (P)
-        @TOP@_read(dev, @T@__P_OFFSET, P, @T@_N * @T@_N);
-}
+""" + _copies("read", [("mu", "mu", "@T@_MODELS"), ("x", "x", "@T@_N"), ("P", "P", "@T@_N * @T@_N")], True) + r"""}
 
 void @TOP@_models(@TOP@_dev_t *dev, double *x_model, double *P_model)
 {
-    if (x_model)
-        @TOP@_read(dev, @T@__X_MODEL_OFFSET, x_model, @T@_MODELS * @T@_N);
-    if (P_model)
-        @TOP@_read(dev, @T@__P_MODEL_OFFSET, P_model, @T@_MODELS * @T@_N * @T@_N);
-}
-"""
+""" + _copies("read", [("x_model", "x_model", "@T@_MODELS * @T@_N"),
+                       ("P_model", "P_model", "@T@_MODELS * @T@_N * @T@_N")], True) + "}\n")
 
 
 def imm_driver(top: str, fmt: str, fields: tuple[str, ...]) -> dict[str, str]:
@@ -541,3 +546,119 @@ def imm_driver(top: str, fmt: str, fields: tuple[str, ...]) -> dict[str, str]:
     (:func:`id_fields` of the core's map)."""
     return driver(top, fmt, CorePart("IMM", _IMM_SIZES, "", _IMM_API, "", "", "@T@__CTRL__START_bm", _IMM_SOURCE,
                                      tuple(fields)))
+
+
+# ---------------------------------------------------------------------------- the KF and the EKF
+
+#: Reading the estimate, x (n) and P (n x n), each skipped when its pointer is NULL.
+_ESTIMATE_API = r"""/* The estimate: x (n) and P (n x n, row-major); a NULL pointer skips its region. */
+void @TOP@_estimate(@TOP@_dev_t *dev, double *x, double *P);
+"""
+
+_ESTIMATE = (r"""
+void @TOP@_estimate(@TOP@_dev_t *dev, double *x, double *P)
+{
+""" + _copies("read", [("x", "x", "@T@_N"), ("P", "P", "@T@_N * @T@_N")], True) + "}\n")
+
+_KF_SIZES = r"""/* Sizes of the filter, from the generated header: n states, m measurements, nu control inputs. */
+#define @T@_N @T@__X_ROWS
+#define @T@_M @T@__Z_ROWS
+#ifdef @T@__U_OFFSET
+#define @T@_NU @T@__U_ROWS
+#else
+#define @T@_NU 0u
+#endif
+
+"""
+
+#: Writing B: only a core with control inputs has region B.
+_KF_B = r"""#ifdef @T@__B_OFFSET
+    @TOP@_write(dev, @T@__B_OFFSET, B, @T@_N * @T@_NU);
+#else
+    (void)B;
+#endif
+"""
+
+_KF = CorePart(
+    "linear Kalman filter", _KF_SIZES, "",
+    r"""/* The initial state x (n) and covariance P (n x n) and the model: F (n x n), B (n x nu; ignored,
+ * and may be NULL, without control inputs), Q (n x n), H (m x n), R (m x m); row-major, both
+ * triangles of P, Q and R (the core reads the lower ones). Any region may be written again
+ * between iterations with @TOP@_write (@TOP@.h's offsets). */
+void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *F, const double *B,
+                const double *Q, const double *H, const double *R);
+""" + _ITERATE_API + _ESTIMATE_API,
+    "", "", "@T@__CTRL__START_bm",
+    r"""void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *F, const double *B,
+                const double *Q, const double *H, const double *R)
+{
+""" + _copies("write", [("x", "x", "@T@_N"), ("P", "P", "@T@_N * @T@_N"), ("F", "F", "@T@_N * @T@_N")]) + _KF_B
+    + _copies("write", [("Q", "Q", "@T@_N * @T@_N"), ("H", "H", "@T@_M * @T@_N"), ("R", "R", "@T@_M * @T@_M")])
+    + "}\n\n" + _iterate("") + _ESTIMATE,
+    ())
+
+_KF_STEADY = CorePart(
+    "steady-gain linear Kalman filter", _KF_SIZES, "",
+    r"""/* The initial state x (n) and the model: F (n x n), B (n x nu; ignored, and may be NULL, without
+ * control inputs), H (m x n) and the fixed gain K (n x m); row-major. The core derives
+ * A = F - K H F and G = B - K H B (its step gain) by itself before the next iteration. */
+void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *F, const double *B, const double *H,
+                const double *K);
+/* A new gain K (n x m): written, then the core's gain step run at once (so that the next
+ * iteration does not pay its cycles). 0, or the STATUS error bits. */
+int @TOP@_set_gain(@TOP@_dev_t *dev, const double *K);
+""" + _ITERATE_API + r"""/* The estimate x (n). */
+void @TOP@_estimate(@TOP@_dev_t *dev, double *x);
+""",
+    "", ", uint32_t step", "@T@__CTRL__START_bm | (step << @T@__CTRL__STEP_bp)",
+    r"""void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *F, const double *B, const double *H,
+                const double *K)
+{
+""" + _copies("write", [("x", "x", "@T@_N"), ("F", "F", "@T@_N * @T@_N")]) + _KF_B
+    + _copies("write", [("H", "H", "@T@_M * @T@_N"), ("K", "K", "@T@_N * @T@_M")]) + r"""}
+
+int @TOP@_set_gain(@TOP@_dev_t *dev, const double *K)
+{
+""" + _copies("write", [("K", "K", "@T@_N * @T@_M")]) + r"""    return @TOP@_run(dev, @T@__CTRL__STEP__GAIN);
+}
+
+""" + _iterate(", @T@__CTRL__STEP__ITERATE") + r"""
+void @TOP@_estimate(@TOP@_dev_t *dev, double *x)
+{
+""" + _copies("read", [("x", "x", "@T@_N")]) + "}\n",
+    ())
+
+
+def kf_driver(top: str, fmt: str, fields: tuple[str, ...], steady_gain: bool = False) -> dict[str, str]:
+    """The linear Kalman filter's driver (:func:`driver`): load x0, P0 and the model F, B, Q, H,
+    R (with a steady gain: x0, F, B, H, K, and ``TOP_set_gain``), one iteration per start on z
+    and u, the estimate. ``fields``: the ID fields to check (:func:`id_fields` of the core's
+    map)."""
+    return driver(top, fmt, (_KF_STEADY if steady_gain else _KF)._replace(id_fields=tuple(fields)))
+
+
+_EKF = CorePart(
+    "EKF",
+    r"""/* Sizes of the filter, from the generated header: n states, m observations, nw and nv noise terms. */
+#define @T@_N @T@__X_ROWS
+#define @T@_M @T@__Z_ROWS
+#define @T@_NW @T@__Q_ROWS
+#define @T@_NV @T@__R_ROWS
+
+""", "",
+    r"""/* The initial state x (n) and covariance P (n x n), the noise covariances Q (nw x nw) and R
+ * (nv x nv); row-major, both triangles. f, h and their Jacobians are the core's own. */
+void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *Q, const double *R);
+""" + _ITERATE_API + _ESTIMATE_API,
+    "", "", "@T@__CTRL__START_bm",
+    r"""void @TOP@_load(@TOP@_dev_t *dev, const double *x, const double *P, const double *Q, const double *R)
+{
+""" + _copies("write", [("x", "x", "@T@_N"), ("P", "P", "@T@_N * @T@_N"), ("Q", "Q", "@T@_NW * @T@_NW"),
+                        ("R", "R", "@T@_NV * @T@_NV")]) + "}\n\n" + _iterate("") + _ESTIMATE,
+    ())
+
+
+def ekf_driver(top: str, fmt: str, fields: tuple[str, ...]) -> dict[str, str]:
+    """The EKF's driver (:func:`driver`): load x0, P0, Q, R, one iteration per start on z (and
+    u), the estimate. ``fields``: the ID fields to check (:func:`id_fields` of the core's map)."""
+    return driver(top, fmt, _EKF._replace(id_fields=tuple(fields)))

@@ -26,7 +26,7 @@ from kfgen.hdl.ukf.core import stream_spec
 from kfgen.hdl.ukf.regmap import ukf_map
 from kfgen.hdl.ukf.steps import programs
 
-from .cdriver import id_fields, imm_driver, ukf_driver
+from .cdriver import ekf_driver, id_fields, imm_driver, kf_driver, ukf_driver
 from .regdoc import documents, map_manifest
 
 __all__ = ["discover", "bind"]
@@ -76,6 +76,14 @@ def _imm_driver(params):
     return imm_driver(params.name, params.format.name, id_fields(imm_map(params)))
 
 
+def _kf_driver(params):
+    return kf_driver(params.name, params.fmt.name, id_fields(kf_map(params)), params.steady_gain)
+
+
+def _ekf_driver(params):
+    return ekf_driver(params.name, params.fmt.name, id_fields(ekf_map(params)))
+
+
 def _ukf_documents(params):
     """The UKF's map documents and C driver; with stream ports, their fields in ``TOP.md``
     and as ``TOP_S_AXIS_*``/``TOP_M_AXIS_*`` macros in the driver's header."""
@@ -116,9 +124,9 @@ _HOOKS = {
             "documents": _ukf_documents, "extra": _with_map},
     "imm": {"bench": "kfgen.gen.bench_imm", "smoke": _smoke("kfgen.sim.imm.smoke"),
             "documents": _map_documents(imm_map, _imm_driver), "extra": _with_map},
-    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _smoke("kfgen.sim.kf.smoke"), "documents": _map_documents(kf_map),
+    "kf": {"bench": "kfgen.gen.bench_kf", "smoke": _smoke("kfgen.sim.kf.smoke"), "documents": _map_documents(kf_map, _kf_driver),
            "extra": _with_map},
-    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _smoke("kfgen.sim.ekf.smoke"), "documents": _map_documents(ekf_map),
+    "ekf": {"bench": "kfgen.gen.bench_ekf", "smoke": _smoke("kfgen.sim.ekf.smoke"), "documents": _map_documents(ekf_map, _ekf_driver),
             "extra": _with_map},
 }
 

@@ -214,3 +214,19 @@ def planted_bug(vectors, out, op):
     was, lines[k] = lines[k], " ".join(words)
     out.write_text("\n".join(lines) + "\n")
     return was
+
+
+def c_driver(directory, core_name, **params):
+    """Core ``core_name``'s manifest with ``params`` (as :func:`python_driver`) and its generated
+    C driver (``TOP.h``, ``TOP_driver.h``, ``TOP_driver.c``, :mod:`kfgen.gen.cdriver`) written
+    into ``directory`` and compiled with its MMIO hooks under the driver's promised flags
+    (:func:`kfgen.sim.engine.run.build_driver`): (manifest, the library's path)."""
+    from kfgen.gen.cores import discover
+    from kfgen.sim.engine.run import build_driver
+
+    man, _ = python_driver(directory, core_name, **params)
+    core = discover()[core_name]
+    p = core.params(**params)
+    for name, text in core.documents(p).items():
+        (Path(directory) / name).write_text(text)
+    return man, build_driver(directory, p.name)

@@ -72,21 +72,23 @@ def c_function(lib, top: str, symbol: str, restype=ctypes.c_int):
     return call
 
 
-def set_hooks(lib, top: str, guard: Guard, read32, write32, read_block, write_block, wait_event) -> list:
+def set_hooks(lib, top: str, guard: Guard, read32, write32, read_block, write_block, wait_event,
+              call=resume) -> list:
     """Set the driver's hooks (``TOP_set_hooks``) to the coroutine functions given, each run
     in the simulation (``resume``) and guarded by ``guard``: ``read32(addr)``,
     ``write32(addr, word)``, ``read_block(addr, count)`` (the words), ``write_block(addr,
-    words)``, ``wait_event()``. The callbacks, which the caller keeps alive while the driver
-    runs."""
+    words)``, ``wait_event()`` (None: the driver polls STATUS). ``call``: how a hook runs one
+    (``resume``; for plain functions, outside a simulation, ``lambda fn: fn``). The callbacks,
+    which the caller keeps alive while the driver runs."""
     def read_into(_ctx, addr, dst, count):
-        for i, w in enumerate(resume(read_block)(addr, count)):
+        for i, w in enumerate(call(read_block)(addr, count)):
             dst[i] = w
 
-    callbacks = [READ32(guard.wrap(lambda _c, a: resume(read32)(a))),
-                 WRITE32(guard.wrap(lambda _c, a, v: resume(write32)(a, v))),
+    callbacks = [READ32(guard.wrap(lambda _c, a: call(read32)(a))),
+                 WRITE32(guard.wrap(lambda _c, a, v: call(write32)(a, v))),
                  BLOCK(guard.wrap(read_into)),
-                 BLOCK(guard.wrap(lambda _c, a, src, k: resume(write_block)(a, [src[i] for i in range(k)]))),
-                 EVENT(guard.wrap(lambda _c: resume(wait_event)()))]
+                 BLOCK(guard.wrap(lambda _c, a, src, k: call(write_block)(a, [src[i] for i in range(k)]))),
+                 EVENT(guard.wrap(lambda _c: call(wait_event)())) if wait_event is not None else EVENT()]
     hooks = Hooks(*callbacks, None)
     getattr(lib, f"{top}_set_hooks")(ctypes.byref(hooks))
     return [callbacks, hooks]

@@ -290,6 +290,7 @@ HELP_DEFAULTS = [  # (core, text its --help must hold): the latencies the units 
     ("ukf", "default 13 (for the other options' defaults)"), ("imm", "default 2 (for the other options' defaults)"),
     ("ukf", "DIR/TOP_driver.h, DIR/TOP_driver.c"), ("ukf", "DIR/TOP_ip.tcl, DIR/TOP_driver.py, DIR/TOP.core"),
     ("imm", "DIR/TOP_ip.tcl, DIR/TOP_driver.py, DIR/TOP.core"),
+    ("kf", "DIR/TOP_driver.h, DIR/TOP_driver.c"), ("ekf", "DIR/TOP_driver.h, DIR/TOP_driver.c"),
 ]
 
 

@@ -70,6 +70,9 @@ ELSEWHERE = {
         "tests/kf/test_kf_cli.py::test_steady_gain_manifest",
     "python -m kfgen.sim.kf.stability": "tests/kf/test_kf_golden.py::test_stability_command_prints_the_table",
     "python -m kfgen.gen.bench_kf": "tests/kf/test_kf_bench.py::test_bench_prints_the_table",
+    "python -m kfgen.gen.bench_filters --no-synth --seeds 0": "tests/common/test_bench_filters.py::test_table_is_printed",
+    "python -m kfgen.gen.bench_filters --apps cv,tracker --no-pnr --seeds 100 --workers 2":
+        "tests/common/test_bench_filters.py::test_linear_application_every_filter_is_the_kalman_filter",
     "kfgen fusesoc --cores-root cores run --target lint kfgen:cores:trk":
         "tests/common/test_fusesoc.py::test_lint_target",
     "kfgen fusesoc --cores-root cores run --target sim kfgen:cores:trk":

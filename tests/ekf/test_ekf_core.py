@@ -62,7 +62,7 @@ def test_files_and_manifest(rtl):
     names = sorted(p.name for p in rtl.glob(f"{TOP}*"))
     assert names == sorted([f"{TOP}.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xdc", "sdc",
                                                        "xml")] + [f"{TOP}_ip.tcl", f"{TOP}_tb.v", f"{TOP}_vectors.hex",
-                                                                   f"{TOP}_driver.py"])
+                                                                   f"{TOP}_driver.py", f"{TOP}_driver.h", f"{TOP}_driver.c"])
     man = json.loads((rtl / f"{TOP}.json").read_text())
     params = EkfParams(**man["parameters"])
     assert params.sizes == (4, 2, 2, 2, 0) and params.pes == 2 and params.app == "tracker:Tracker"
@@ -128,9 +128,9 @@ def sim(rtl):
 @pytest.mark.verilator
 @pytest.mark.xdist_group("ekf_core")
 def test_cocotb(rtl, sim):
-    """The tracker's scenario over the bus, the bus and fault cases with err_pivot, and the
-    stream ports, on the one build (n = 4, m = 2, P = 2, binary32)."""
-    run_tb(sim, rtl, TOP, TB, ["iterations", "errors", "stream_iterations"], "all")
+    """The tracker's scenario over the bus, the bus and fault cases with err_pivot, the
+    stream ports and the generated C driver, on the one build (n = 4, m = 2, P = 2, binary32)."""
+    run_tb(sim, rtl, TOP, TB, ["iterations", "errors", "stream_iterations", "c_driver"], "all")
 
 
 @pytest.mark.verilator

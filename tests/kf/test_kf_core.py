@@ -34,7 +34,7 @@ def rtl(build_root):
 def test_files_and_manifest(rtl):
     names = {p.name for p in rtl.glob("kf_small.*")}
     assert {f"kf_small.{ext}" for ext in ("v", "vlt", "json", "rdl", "h", "md", "core", "xml")} <= names
-    assert (rtl / "kf_small_driver.py").is_file()
+    assert {"kf_small_driver.py", "kf_small_driver.h", "kf_small_driver.c"} <= {p.name for p in rtl.iterdir()}
     man = json.loads((rtl / "kf_small.json").read_text())
     params = KfParams(**man["parameters"])
     assert (params.n, params.m, params.nu, params.pes, params.streams) == (4, 2, 1, 2, True)
@@ -79,7 +79,8 @@ def sim(rtl):
 @pytest.mark.xdist_group("kf_core")
 def test_cocotb(rtl, sim):
     """Every case on the one build (n = 4, m = 2, nu = 1, P = 2, binary32, streams)."""
-    run_tb(sim, rtl, "kf_small", TB, ["iterations", "errors", "stream_iterations", "python_driver"], "all")
+    run_tb(sim, rtl, "kf_small", TB, ["iterations", "errors", "stream_iterations", "python_driver", "c_driver"],
+           "all")
 
 
 @pytest.mark.verilator
@@ -111,5 +112,5 @@ def test_cocotb_configurations(request, build_root, args):
     rc, messages = lint(out / f"{top}.v")
     assert rc == 0 and not messages, "\n".join(messages)
     model = build_core(out, top, VERILATOR_CACHE)
-    tests = ["iterations", "errors"] + (["stream_iterations"] if "--streams" in args else [])
+    tests = ["iterations", "errors", "c_driver"] + (["stream_iterations"] if "--streams" in args else [])
     run_tb(model, out, top, TB, tests, "all")

@@ -12,6 +12,10 @@ velocity:
 The scenario flies the same model (the truth is f with drawn accelerations) from a start
 drawn around x0 with P0, so the filter's numbers are the truth's. The target stays well
 inside the first quadrant, so the bearing never wraps at +-pi (h does not handle the wrap).
+
+:class:`PositionTracker` is its linear variant (the same target seen by a sensor of its
+position, h = [px, py] + v): what a linear Kalman filter runs as well as an EKF or a UKF, its
+F, H, Q, R from :meth:`PositionTracker.linear_model` (``kfgen kf``'s buffer).
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import numpy as np
 
 from ..app import Scenario, UkfApplication
 
-__all__ = ["Tracker"]
+__all__ = ["Tracker", "PositionTracker"]
 
 
 class Tracker(UkfApplication):
@@ -55,3 +59,37 @@ class Tracker(UkfApplication):
             truth.append(x)
             z.append(self.h(x, rng.normal(0.0, [self.sigma_range, self.sigma_bearing])))
         return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), np.zeros((steps, 0)), np.array(z))
+
+
+class PositionTracker(Tracker):
+    """The same nearly-constant-velocity target, its position measured directly (a GPS-like
+    sensor, sigma_position per axis): f and h are linear."""
+
+    sigma_position = 10.0  #: m
+
+    def __init__(self):
+        super().__init__()
+        self.R = np.eye(2) * self.sigma_position ** 2
+
+    def h(self, x, v):
+        return np.array([x[0], x[1]]) + v
+
+    def scenario(self, steps: int, seed: int) -> Scenario:
+        rng = np.random.default_rng(seed)
+        x = rng.multivariate_normal(self.x0, self.P0)
+        truth, z = [], []
+        for _ in range(steps):
+            x = self.f(x, rng.normal(0.0, self.sigma_accel, 2), None, self.dt)
+            truth.append(x)
+            z.append(self.h(x, rng.normal(0.0, self.sigma_position, 2)))
+        return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), np.zeros((steps, 0)), np.array(z))
+
+    def linear_model(self) -> dict:
+        """The model as a linear Kalman filter's, float64 arrays by ``kfgen kf`` region: F (f's
+        transition), Q = G Q_w G^T (G, f's noise gain: the acceleration's effect over dt), H
+        and R."""
+        dt, eye = self.dt, np.eye(2)
+        F = np.block([[eye, dt * eye], [np.zeros((2, 2)), eye]])
+        G = np.vstack([eye * dt * dt / 2, eye * dt])
+        H = np.hstack([eye, np.zeros((2, 2))])
+        return {"F": F, "Q": G @ self.Q @ G.T, "H": H, "R": self.R.copy()}
