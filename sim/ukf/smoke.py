@@ -76,14 +76,12 @@ class _Io:
 
 
 def _application(params) -> UkfApplication:
-    """The core's application; without one, the nanosatellite's where the core has its sizes
-    (the chapter's configuration, the default), else a generic model."""
-    if params.app is not None:
-        return load_app(params.app)
-    nanosat = load_app("nanosat:Nanosat")
-    if (nanosat.n, nanosat.nw, nanosat.nv, nanosat.m, nanosat.W0) == (params.n, params.nw, params.nv, params.m,
-                                                                      params.w0):
-        return nanosat
+    """The core's application where the core has its sizes (an option such as
+    ``--measurement-noise`` may override one); without one, the nanosatellite's where the core
+    has its sizes (the chapter's configuration, the default); else a generic model."""
+    app = load_app(params.app if params.app is not None else "nanosat:Nanosat")
+    if (app.n, app.nw, app.nv, app.m, app.W0) == (params.n, params.nw, params.nv, params.m, params.w0):
+        return app
     return GenericModel(params)
 
 

@@ -95,6 +95,7 @@ SCHEDULER_DOCS = (".venv/bin/dask scheduler --port 8786 &",
                   "--scheduler tcp://127.0.0.1:8786 -o build/bench_dask")
 
 
+@pytest.mark.full  # 18 s: a scheduler, a worker and a bench apart; make test's Dask is test_local_cluster
 def test_scheduler_commands_in_the_docs(tmp_path):
     """The commands as docs/benchmarks.md gives them (the work directory moved): a scheduler and
     a worker started apart, and a bench whose synthesis runs on that worker."""

@@ -163,7 +163,7 @@ def _sweep(fn, fmt, n, seed):
 
 @pytest.mark.parametrize("fn", FUNCTIONS)
 def test_model_binary32(fn):
-    _sweep(fn, "binary32", 100_000, seed=1)
+    _sweep(fn, "binary32", 20_000, seed=1)  # 10**6 in make test-full
 
 
 @pytest.mark.full

@@ -381,6 +381,7 @@ def test_buggy_f_or_h_is_refused_before_anything_is_built(tmp_path, monkeypatch,
     assert not (tmp_path / "work").exists()
 
 
+@pytest.mark.full  # generates the on-chip pendulum twice (13 s)
 def test_relative_and_absolute_app_paths_generate_the_same_bytes(tmp_path, monkeypatch):
     """The co-simulation's on-chip core from ``myapps/pendulum.py:Pendulum`` (relative to the
     current directory) and from its absolute path: every generated file the same bytes, the

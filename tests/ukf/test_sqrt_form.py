@@ -114,6 +114,7 @@ def test_binary32_is_closer_to_float64_than_ldl():
     assert err["ldl"][:, 4:].max() > 10 * err["sqrt"][:, 4:].max()
 
 
+@pytest.mark.full  # schedules twelve cores (14 s)
 def test_cycles_table_is_the_bench():
     """docs/ukf.md's cycles of the two forms are what ``python -m kfgen.gen.bench_sqrt``
     prints."""

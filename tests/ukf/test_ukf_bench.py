@@ -136,6 +136,7 @@ def test_target_mhz_options(capsys, module):
     assert exc.value.code == 2 and "--target-mhz: expected a clock in MHz" in err[-1], err
 
 
+@pytest.mark.full  # 22 s; make test generates --target-mhz cores in tests/common/test_cli.py, test_built_once.py
 def test_target_mhz_builds_the_cores_for_the_clock(tmp_path):
     """``bench_ukf --target-mhz 125`` generates its cores as ``kfgen ukf --target-mhz 125``
     (the manifest's timing, the fetch register's extra cycle a step, in the notes), and part
