@@ -205,6 +205,7 @@ def test_dsp_multipliers_bit_exact(core, top, lut):
     assert set(cols["phase"]) == {0, 1, 2}
 
 
+@pytest.mark.full  # a second width's build (15 s): make test runs the default widths
 def test_non_default_widths(core):
     out, p, man = core("castella_w20")
     rng = np.random.default_rng(31)

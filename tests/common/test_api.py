@@ -85,6 +85,7 @@ def test_the_core_loads_its_application_itself():
     assert proc.stdout.split() == ["True", "False", "False"]
 
 
+@pytest.mark.full  # two on-chip generations (16 s); test_generate_core_gives_the_command_lines_files in make test
 def test_an_application_sizes_the_core_as_on_the_command_line(tmp_path):
     """``generate_core("ukf", app=..., on_chip=True)`` takes the application's sizes first, as
     ``kfgen ukf --app ... --on-chip`` does (the command line generates through this API): the

@@ -143,8 +143,10 @@ def synth(rtl):
     return run
 
 
-# ECP5 in make test-full: make test synthesises for ECP5 in tests/engine/test_linalg_banks.py.
-@pytest.mark.parametrize("family, cell", [("xilinx", "FDRE"), pytest.param("ecp5", "TRELLIS_FF", marks=pytest.mark.full)])
+# make test-full (35 s of Yosys): make test synthesises the engine's banks for both families
+# (tests/engine/test_linalg_banks.py) and an FPU unit through FuseSoC.
+@pytest.mark.full
+@pytest.mark.parametrize("family, cell", [("xilinx", "FDRE"), ("ecp5", "TRELLIS_FF")])
 @pytest.mark.xdist_group("castella_rtl")
 def test_yosys_synth(synth, family, cell):
     returncode, log, stat = synth(family)
@@ -153,6 +155,7 @@ def test_yosys_synth(synth, family, cell):
     assert "$_DLATCH" not in stat and "LDCE" not in stat, "no latches"
 
 
+@pytest.mark.full  # synth_xilinx of a unit (13 s); make test-full
 def test_fpu_bench_table(tmp_path):
     """``make bench``'s FPU half on one small unit without place and route: a row with the
     manifest's latency and synth_xilinx counts, written beside the printed table."""

@@ -111,7 +111,8 @@ def check(unit, op, sets, seed, idle=0.3):
 # --------------------------------------------------------------------------- div and sqrt
 @pytest.mark.parametrize("op", ["div", "sqrt"])
 @pytest.mark.parametrize("fmt, subnormals, n_random", [
-    ("binary32", "ieee", 1500),
+    # binary32's IEEE units run on Verilator in make test (tests/fpu/test_fpu_cocotb.py)
+    pytest.param("binary32", "ieee", 1500, marks=pytest.mark.full),
     ("binary32", "ftz", 500),
     ("binary16", "ieee", 500),
     ("binary16", "ftz", 300),
@@ -127,7 +128,7 @@ def test_pipelined(op, fmt, subnormals, n_random):
 
 @pytest.mark.parametrize("op", ["div", "sqrt"])
 @pytest.mark.parametrize("fmt, subnormals, cycles, n_random, corpus", [
-    ("binary32", "ieee", 4, 400, 3),            # a third of the corpus (all of it for sqrt)
+    pytest.param("binary32", "ieee", 4, 400, 3, marks=pytest.mark.full),  # a third of the corpus (all of it for sqrt)
     ("binary32", "ieee", 2, 300, 0),            # the fewest cycles that are iterative
     ("binary32", "ftz", 4, 200, 0),
     ("binary32", "ieee", "steps", 60, 0),       # one step per cycle: the smallest

@@ -188,7 +188,10 @@ def documented():
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("imm_cosim")
-@pytest.mark.parametrize("processors", [1, pytest.param(2, marks=pytest.mark.full)], ids=["python", "python+c"])
+# make test-full (a Verilator build of the example's core, 65 s of the regression): make test
+# runs the IMM core's cocotb cases, its Python driver and its C driver's compile.
+@pytest.mark.full
+@pytest.mark.parametrize("processors", [1, 2], ids=["python", "python+c"])
 def test_documented_commands(build_root, processors):
     """docs/imm.md's two commands as written (the work directory moved under the build root):
     the Python processor, then (make test-full; the UKF's co-simulation runs its C driver in
@@ -239,7 +242,8 @@ class Glitch(example.ConstantVelocity):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("imm_cosim")
-@pytest.mark.parametrize("processor", [pytest.param("python", marks=pytest.mark.full), "c"])
+@pytest.mark.full  # on test_documented_commands' build
+@pytest.mark.parametrize("processor", ["python", "c"])
 def test_fault_is_one_line_exit_3(build_root, tmp_path, processor):
     """A numerical fault in the core: one line naming the iteration and the bit, exit 3, from
     either processor, and no cosim.npz (the example's core: test_documented_commands' build)."""
