@@ -31,6 +31,9 @@ import uuid
 
 __all__ = ["Runner", "add_arguments", "runner_argv", "open_runner", "shared", "collect", "failed", "timed", "task_seconds"]
 
+#: How long ``--scheduler ADDRESS`` waits for the scheduler to answer.
+CONNECT_TIMEOUT = "10s"
+
 _SHARED: list["Runner"] = []
 
 
@@ -82,7 +85,7 @@ class Runner:
             _usage(f"Dask distributed is not installed ({exc}); make dev installs it, or run with --serial")
         if scheduler:
             try:
-                self.client = Client(scheduler, timeout="10s")
+                self.client = Client(scheduler, timeout=CONNECT_TIMEOUT)
             except (OSError, ValueError, TypeError) as exc:
                 _usage(f"--scheduler: no Dask scheduler answers at {scheduler!r} ({str(exc).splitlines()[0]})")
             n = len(self.client.scheduler_info().get("workers", {}))

@@ -131,8 +131,11 @@ def test_scheduler_commands_in_the_docs(tmp_path):
     (["--workers", "0"], "must be at least 1"),
     (["--jobs", "x"], "expected a whole number"),
 ])
-def test_bad_runner_options(capsys, argv, says):
+def test_bad_runner_options(capsys, monkeypatch, argv, says):
     from kfgen.gen import bench_fpu
+    from kfgen.sim import cluster
+
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", "1s")  # nothing listens on port 9: the wait is all the time
 
     with pytest.raises(SystemExit) as exc:
         bench_fpu.main(["--ops", "f2i", "--formats", "binary16", "--no-pnr", *argv])
