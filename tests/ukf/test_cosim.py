@@ -319,7 +319,9 @@ def test_pendulum_example_cosimulates(pendulum_work):
 
 @pytest.mark.verilator
 @pytest.mark.xdist_group("cosim_pendulum")
-@pytest.mark.parametrize("processor", [pytest.param("python", marks=pytest.mark.full), "c"])
+# make test-full (17 s): make test runs the KF's and EKF's C drivers on their cores, with a fault
+@pytest.mark.full
+@pytest.mark.parametrize("processor", ["python", "c"])
 def test_pendulum_fault(pendulum_work, tmp_path, processor):
     """A numerical fault in the core (a measurement beyond binary32 at iteration 2): one line
     naming the iteration, the step and the bit, exit 3, from either processor; the app given
