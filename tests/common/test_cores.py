@@ -56,7 +56,9 @@ def test_descriptor_documents_every_parameter(core):
     assert len(set(names)) == len(names), "each example needs its own directory"
 
 
-@pytest.mark.parametrize("core, example", EXAMPLES,
+# The FPU's twelve examples in make test-full (15 s; their units' tests run in make test).
+@pytest.mark.parametrize("core, example", [(c, ex) if c.name != "fpu" else pytest.param(c, ex, marks=pytest.mark.full)
+                                           for c, ex in EXAMPLES],
                          ids=[core.params(**ex).name for core, ex in EXAMPLES])
 def test_example_netlists_are_unchanged(core, example):
     params = core.params(**example)

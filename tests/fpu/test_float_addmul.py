@@ -86,6 +86,8 @@ def check_stream(dut, op, operands, rng):
 #: binary32's on Verilator (tests/fpu/test_fpu_cocotb.py). So do binary32's IEEE units (40 s
 #: of CPU in all): make test runs every one of them on Verilator (its "binary32" group).
 FULL_ONLY = {("fma", "binary32", "ftz")} | {(op, "binary32", "ieee") for op in ("add", "sub", "mul", "fma")}
+#: bfloat16 and e6m11 (the code binary16 runs, other widths: 35 s) in make test-full too.
+FULL_ONLY |= {(op, fmt, sub) for op in ("add", "sub", "mul", "fma") for fmt in ("bfloat16", "e6m11") for sub in ("ieee", "ftz")}
 
 
 @pytest.mark.parametrize("op, fmt_name, subnormals", [
