@@ -9,7 +9,7 @@ import numpy as np
 from kfgen.hdl.kf.steps import programs
 from kfgen.sim.engine.script import Script
 
-__all__ = ["ITERATIONS", "smoke_plan"]
+__all__ = ["ITERATIONS", "smoke_plan", "system"]
 
 #: Filter iterations the testbench runs.
 ITERATIONS = 2
@@ -27,7 +27,7 @@ def _riccati_gain(F, H, Q, R, rounds: int = 500) -> np.ndarray:
     return P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
 
 
-def system(params, rng) -> dict:
+def system(params, rng, gain=_riccati_gain) -> dict:
     """A chain of integrators as F, H measuring every (n / m)-th state, B driving the last
     states, correlated R, a random positive definite P0 (a steady-gain core: its gain); float64
     arrays by region."""
@@ -44,7 +44,7 @@ def system(params, rng) -> dict:
         B[n - 1 - j % n, j] = 0.1
     values = {"x": rng.normal(size=n), "P": np.eye(n) * 0.5 + A @ A.T, "F": F, "B": B, "Q": Q, "H": H, "R": R}
     if params.steady_gain:
-        values["K"] = _riccati_gain(F, H, Q, R)
+        values["K"] = gain(F, H, Q, R)
     return values
 
 

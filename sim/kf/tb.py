@@ -29,6 +29,7 @@ from kfgen.sim.linalg.exec import to_words
 from kfgen.sim.streams import StreamChecker
 
 from .reference import steady_gain
+from .smoke import system as smoke_system
 
 __all__ = ["TB_MODULE", "KfTB", "system"]
 
@@ -42,24 +43,10 @@ class KfTB(TB):
 
 
 def system(params, rng) -> dict:
-    """A test model for any n, m, nu: a chain of integrators as F, H measuring every
-    (n / m)-th state, B driving the last states, correlated R, a random positive definite P0
-    (with a steady gain K, the DARE's). Float64 arrays keyed by region name: the regions the
-    buffer holds but z and u."""
-    n, m, nu = params.n, params.m, params.nu
-    F = np.eye(n) + 0.1 * np.eye(n, k=1)
-    H = np.zeros((m, n))
-    for i in range(m):
-        H[i, (i * n) // m] = 1.0
-    Q = np.eye(n) * 0.01
-    R = np.eye(m) * 0.2 + 0.05 * (1 - np.eye(m))
-    A = rng.normal(size=(n, n)) * 0.2
-    values = {"x": rng.normal(size=n), "P": np.eye(n) * 0.5 + A @ A.T, "F": F, "B": np.zeros((n, nu)),
-              "Q": Q, "H": H, "R": R}
-    for j in range(nu):
-        values["B"][n - 1 - j % n, j] = 0.1
-    if params.steady_gain:
-        values["K"] = steady_gain(F, H, Q, R)
+    """A test model for any n, m, nu (:func:`kfgen.sim.kf.smoke.system`'s: a chain of
+    integrators; with a steady gain K, scipy's DARE). Float64 arrays keyed by region name: the
+    regions the buffer holds but z and u."""
+    values = smoke_system(params, rng, gain=steady_gain)
     lay = programs(params).layout
     return {name: values[name] for name, reg in lay.regions.items() if name in values and reg.kind == "bus"}
 

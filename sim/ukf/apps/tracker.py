@@ -57,8 +57,11 @@ class Tracker(UkfApplication):
         for _ in range(steps):
             x = self.f(x, rng.normal(0.0, self.sigma_accel, 2), None, self.dt)
             truth.append(x)
-            z.append(self.h(x, rng.normal(0.0, [self.sigma_range, self.sigma_bearing])))
+            z.append(self.h(x, self._measurement_noise(rng)))
         return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), np.zeros((steps, 0)), np.array(z))
+
+    def _measurement_noise(self, rng):
+        return rng.normal(0.0, [self.sigma_range, self.sigma_bearing])
 
 
 class PositionTracker(Tracker):
@@ -74,15 +77,8 @@ class PositionTracker(Tracker):
     def h(self, x, v):
         return np.array([x[0], x[1]]) + v
 
-    def scenario(self, steps: int, seed: int) -> Scenario:
-        rng = np.random.default_rng(seed)
-        x = rng.multivariate_normal(self.x0, self.P0)
-        truth, z = [], []
-        for _ in range(steps):
-            x = self.f(x, rng.normal(0.0, self.sigma_accel, 2), None, self.dt)
-            truth.append(x)
-            z.append(self.h(x, rng.normal(0.0, self.sigma_position, 2)))
-        return Scenario(np.arange(1, steps + 1) * self.dt, np.array(truth), np.zeros((steps, 0)), np.array(z))
+    def _measurement_noise(self, rng):
+        return rng.normal(0.0, self.sigma_position, 2)
 
     def linear_model(self) -> dict:
         """The model as a linear Kalman filter's, float64 arrays by ``kfgen kf`` region: F (f's
