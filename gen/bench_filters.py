@@ -41,7 +41,7 @@ from kfgen.hdl.linalg.engine import OVERHEAD
 from kfgen.hdl.ukf.params import UkfParams
 from kfgen.hdl.ukf.steps import programs as ukf_programs
 from kfgen.hdl.ukf.steps import schedules as ukf_schedules
-from kfgen.sim.cluster import add_arguments, open_runner
+from kfgen.sim.cluster import _usage, add_arguments, open_runner
 from kfgen.sim.ekf.reference import run_reference as ekf_reference
 from kfgen.sim.kf.reference import run_reference as kf_reference
 from kfgen.sim.linalg.exec import to_words
@@ -161,11 +161,6 @@ def _parse_int(text: str, what: str, low: int, high: int) -> int:
     if value is None or not low <= value <= high:
         _usage(f"{what} must be an integer from {low} to {high}, not {text!r}")
     return value
-
-
-def _usage(message: str):
-    print(f"error: {message}", file=sys.stderr)
-    raise SystemExit(2)
 
 
 def _parse(argv):

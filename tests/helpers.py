@@ -6,6 +6,7 @@ kfgen``; :mod:`conftest` keeps only pytest's hooks and fixtures."""
 import contextlib
 import io
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -194,6 +195,14 @@ def run_shipped_testbench(directory, top, simulator, work, vectors=None, build=T
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0 and f"\nPASS: {top}: " in "\n" + proc.stdout and "FAIL" not in out, out[-3000:]
     return proc.stdout
+
+
+def iteration_cycles(out) -> list[int]:
+    """The cycles of each iteration a shipped testbench's output prints (``iteration K: C
+    cycles``), checked numbered 0, 1, ... in order."""
+    found = re.findall(r"^iteration (\d+): (\d+) cycles$", out, re.M)
+    assert [int(k) for k, _ in found] == list(range(len(found))), found
+    return [int(c) for _, c in found]
 
 
 def planted_bug(vectors, out, op):

@@ -63,8 +63,13 @@ class GoldenDevice:
         self.steps = []
         self.ran = []
 
-    def _bit(self, reg: str, name: str) -> dict:
-        return next(f for f in self.regs[reg]["fields"] if f["name"] == name)
+    def lsb(self, reg: str, name: str) -> int:
+        """The lowest bit of field ``name`` of register ``reg``."""
+        return next(f["lsb"] for f in self.regs[reg]["fields"] if f["name"] == name)
+
+    def offset(self, region: str) -> int:
+        """The byte offset of buffer region ``region``."""
+        return next(m["offset"] for m in self.manifest["memories"] if m["name"] == region)
 
     def _element(self, offset):
         for lo, hi, reg in self.regions:
@@ -97,10 +102,10 @@ class GoldenDevice:
         value = int(value) & 0xFFFFFFFF
         self.accesses.append(("w", offset, value))
         if offset == self.regs["CTRL"]["offset"]:
-            if value >> self._bit("CTRL", "reset")["lsb"] & 1:
+            if value >> self.lsb("CTRL", "reset") & 1:
                 self.status = 0
                 self.prologue.stale = True
-            if value >> self._bit("CTRL", "start")["lsb"] & 1:
+            if value >> self.lsb("CTRL", "start") & 1:
                 self._start(value)
             return
         if offset == self.regs["STATUS"]["offset"]:
@@ -133,7 +138,7 @@ class GoldenDevice:
         st = self.prologue.run(step, self.mem, self.ran[-1])
         for name, on in (("done", True), ("err_pivot", st.pivot), ("err_nan", st.nan)):
             if on:
-                self.status |= 1 << self._bit("STATUS", name)["lsb"]
+                self.status |= 1 << self.lsb("STATUS", name)
 
     def values(self, name: str):
         """Region ``name`` of the golden memory as float64 values (rows x cols)."""

@@ -66,9 +66,6 @@ class Script:
         self.ops: list[tuple[int, int, int, int, str]] = []
 
     # ------------------------------------------------------------- single accesses
-    def _lsb(self, reg: str, name: str) -> int:
-        return next(f["lsb"] for f in self.regs[reg]["fields"] if f["name"] == name)
-
     def read(self, offset: int, note: str) -> int:
         word = self.device.read(offset)
         self.ops.append((READ, offset, word, 0, note))
@@ -79,7 +76,7 @@ class Script:
         self.ops.append((WRITE, offset, value & _MASK, 0, note))
 
     def _events(self) -> int:
-        return sum(1 << self._lsb("STATUS", e) for e in ("done", "err_pivot", "err_nan", "err_busy"))
+        return sum(1 << self.device.lsb("STATUS", e) for e in ("done", "err_pivot", "err_nan", "err_busy"))
 
     def begin(self) -> None:
         """What a driver does first: read the ID register, reset the core softly, enable every
@@ -87,7 +84,7 @@ class Script:
         ident = self.regs["ID"]["offset"]
         self.read(ident, "ID[31:0]")
         self.read(ident + 4, "ID[63:32]")
-        self.write(self.regs["CTRL"]["offset"], 1 << self._lsb("CTRL", "reset"), "CTRL.reset")
+        self.write(self.regs["CTRL"]["offset"], 1 << self.device.lsb("CTRL", "reset"), "CTRL.reset")
         if "IRQ_ENABLE" in self.regs:
             self.write(self.regs["IRQ_ENABLE"]["offset"], self._events(), "IRQ_ENABLE: every event")
             self.read(self.regs["IRQ_ENABLE"]["offset"], "IRQ_ENABLE")
@@ -131,7 +128,7 @@ class Script:
         its cycles checked), read STATUS (done and the error bits the golden model gives),
         clear it and read it clear. The golden model's status of the start."""
         ctrl = self.regs["CTRL"]
-        word = 1 << self._lsb("CTRL", "start")
+        word = 1 << self.device.lsb("CTRL", "start")
         step_field = next((f for f in ctrl["fields"] if f["name"] == "step"), None)
         if step_field is not None:
             word |= step_field["values"][name] << step_field["lsb"]
@@ -144,8 +141,8 @@ class Script:
         word = self.read(status, "STATUS after " + name)
         self.write(status, word & self._events(), "STATUS: write 1 to clear")
         self.read(status, "STATUS clear")
-        return Status(bool(word >> self._lsb("STATUS", "err_pivot") & 1),
-                      bool(word >> self._lsb("STATUS", "err_nan") & 1), 0)
+        return Status(bool(word >> self.device.lsb("STATUS", "err_pivot") & 1),
+                      bool(word >> self.device.lsb("STATUS", "err_nan") & 1), 0)
 
     def end_iteration(self, number: int) -> None:
         self.ops.append((ITERATION, 0, 0, number, f"end of iteration {number}"))
@@ -155,4 +152,4 @@ class Script:
         operations, and what the testbench needs to wait without ``irq`` (STATUS and its done bit)."""
         ops = self.ops + [(END, 0, len(self.ops), 0, "end")]
         return {"kind": "axi_script", "about": about, "ops": ops,
-                "status": self.regs["STATUS"]["offset"], "done_bit": self._lsb("STATUS", "done")}
+                "status": self.regs["STATUS"]["offset"], "done_bit": self.device.lsb("STATUS", "done")}

@@ -43,10 +43,7 @@ def test_c_driver_on_golden_device(tmp_path, spec):
         assert np.array_equal(x, dev.values("x").ravel()) and np.array_equal(P.reshape(p.n, p.n), dev.values("P"))
     drv("estimate", None, P)  # NULL skips x
     assert dev.steps == ["iterate"] * 3
-    R = next(m["offset"] for m in man["memories"] if m["name"] == "R")
-    drv("write", R, -1e9 * np.eye(p.nv), p.nv * p.nv)
-    status = next(r for r in man["registers"] if r["name"] == "STATUS")
-    pivot = next(f["lsb"] for f in status["fields"] if f["name"] == "err_pivot")
-    assert drv("iterate", us[0] if p.nu else None, zs[0]) & 1 << pivot
+    drv("write", dev.offset("R"), -1e9 * np.eye(p.nv), p.nv * p.nv)
+    assert drv("iterate", us[0] if p.nu else None, zs[0]) & 1 << dev.lsb("STATUS", "err_pivot")
     dev.ident ^= 1 << 56  # another m: not this driver's core
     assert drv.init() == -1
